@@ -1,0 +1,33 @@
+"""The shared ecology interface: knobs, measurements and video, independent of any task."""
+
+from ecology.knobs import (
+    NUM_VALIDATION_LAYOUTS,
+    REWARD_MODES,
+    SCHEDULE_HELP,
+    TEST_MDP,
+    VALIDATION_SEED_BASE,
+    Ecology,
+    Schedule,
+    parse_schedule,
+    schedule_value,
+    validation_seeds,
+)
+from ecology.measure import hitting_time, marginal_entropy, visitation_counts
+from ecology.video import write_video
+
+__all__ = [
+    "NUM_VALIDATION_LAYOUTS",
+    "REWARD_MODES",
+    "SCHEDULE_HELP",
+    "TEST_MDP",
+    "VALIDATION_SEED_BASE",
+    "Ecology",
+    "Schedule",
+    "hitting_time",
+    "marginal_entropy",
+    "parse_schedule",
+    "schedule_value",
+    "validation_seeds",
+    "visitation_counts",
+    "write_video",
+]

@@ -1,0 +1,44 @@
+"""Env-agnostic measurements over rollouts: first-reward hitting time, marginal entropy, visitation."""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+
+def hitting_time(rewards: Sequence[float] | np.ndarray, threshold: float = 0.0) -> int | None:
+    """Number of steps until the first reward above ``threshold`` (1-based), or None if it never came.
+
+    With ``threshold=0`` this is the paper's first-reward hitting time; pass ``threshold=99`` to count only
+    task completions (+100) when shaping rewards are present.
+    """
+    hits = np.flatnonzero(np.asarray(rewards, dtype=np.float64) > threshold)
+    return int(hits[0]) + 1 if hits.size else None
+
+
+def marginal_entropy(observations: Iterable[np.ndarray] | np.ndarray) -> float:
+    """Entropy (nats) of the empirical distribution of distinct observations: H = -sum p log p.
+
+    Observations are compared byte for byte, so pass exactly the part that defines a "state" (for the grid
+    tasks, the egocentric view without the inventory, as in the paper).
+    """
+    counts = Counter(np.ascontiguousarray(o).tobytes() for o in observations)
+    if not counts:
+        raise ValueError("marginal_entropy needs at least one observation")
+    p = np.fromiter(counts.values(), dtype=np.float64)
+    p /= p.sum()
+    return float(-(p * np.log(p)).sum())
+
+
+def visitation_counts(positions: Iterable[Sequence[int]] | np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Count visits per cell: ``positions`` are (x, y) cells, the result is indexed [y, x] (image order)."""
+    pos = np.asarray(list(positions) if not isinstance(positions, np.ndarray) else positions, dtype=np.int64)
+    counts = np.zeros(shape, dtype=np.int64)
+    if pos.size:
+        pos = pos.reshape(-1, 2)
+        if (pos < 0).any() or (pos[:, 0] >= shape[1]).any() or (pos[:, 1] >= shape[0]).any():
+            raise ValueError(f"positions fall outside a grid of shape {shape} (rows, cols)")
+        np.add.at(counts, (pos[:, 1], pos[:, 0]), 1)
+    return counts

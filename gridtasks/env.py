@@ -1,0 +1,304 @@
+"""Gymnasium front ends of the grid engine: one world (`GridTaskEnv`) and many (`GridTaskVectorEnv`).
+
+Both hold the same rules record and call the same compiled kernels; the single environment is a batch
+of one. A task is a subclass of `GridTaskEnv` that names its parameter dataclass (`Config`), its
+observation channels, and fills the rules tables in `fill_rules`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ecology import TEST_MDP, Ecology
+from gridtasks import engine
+from gridtasks.codes import NAMES, Code
+
+
+def world_key(np_random: np.random.Generator) -> np.uint64:
+    """Seed of a world's own random stream, drawn from the environment's seeded generator."""
+    return np_random.integers(np.iinfo(np.uint64).max, dtype=np.uint64, endpoint=True)
+
+
+def check_positive_int(name: str, value: Any, minimum: int = 1) -> None:
+    """Raise a clear error unless ``value`` is an integer >= ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
+def check_probability(name: str, value: Any) -> None:
+    """Raise a clear error unless ``value`` is a number in [0, 1]."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not 0 <= value <= 1:
+        raise ValueError(f"{name} must be a probability in [0, 1], got {value!r}")
+
+
+def check_choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
+    """Raise a clear error unless ``value`` is one of ``choices``."""
+    if value not in choices:
+        raise ValueError(f"unknown {name} {value!r}; choose one of {', '.join(choices)}")
+
+
+class GridTaskEnv(gym.Env):
+    """Base class of the grid tasks (see each task's docstring for its rules).
+
+    Every task takes the four ecology knobs (``dynamism``, ``shaping``, ``reset_free``, ``reward``),
+    ``render_mode`` and its own parameters (the fields of its ``Config``), all as keyword arguments.
+    ``reset(seed=s)`` starts a new life (lifetime clock at 0, a world stream seeded from ``s``);
+    ``reset()`` without a seed starts a new episode in the same life.
+    """
+
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 8}
+    Config: ClassVar[type]
+    channels: ClassVar[tuple[Code, ...]]
+    counted: ClassVar[tuple[Code, ...]] = ()
+    """Codes whose pick-ups are reported in ``info`` (``pickup_<name>``)."""
+    products: ClassVar[tuple[Code, ...]] = ()
+    """Codes whose products are reported in ``info`` (``made_<name>``)."""
+
+    def __init__(self, dynamism=0.0, shaping=0.0, reset_free=False, reward="sparse", render_mode=None,
+                 **params):
+        self.ecology = Ecology(dynamism=dynamism, shaping=shaping, reset_free=reset_free, reward=reward)
+        self.config = self._make_config(params)
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"unknown render_mode {render_mode!r}; choose None or 'rgb_array'")
+        self.render_mode = render_mode
+        self.rules = self._build_rules()
+        c = len(self.channels)
+        self.observation_space = spaces.Box(0.0, 1.0, (c * engine.VIEW_CELLS + c,), np.float32)
+        self.action_space = spaces.Discrete(engine.NUM_ACTIONS)
+        self._state = np.zeros(1, dtype=engine.world_dtype(self.config.grid_size))
+        self._buffers = StepBuffers(1, self.observation_space.shape[0])
+        self._seeded = False
+        self._info_keys = [(f"pickup_{NAMES[c]}", int(c)) for c in self.counted]
+
+    # ---------------------------------------------------------------- construction
+
+    @classmethod
+    def _make_config(cls, params: dict):
+        names = [f.name for f in dataclasses.fields(cls.Config)]
+        unknown = sorted(set(params) - set(names))
+        if unknown:
+            raise TypeError(f"{cls.__name__} got unknown parameter(s) {unknown}; valid task parameters: "
+                            f"{', '.join(names)} (plus dynamism, shaping, reset_free, reward, render_mode)")
+        return cls.Config(**params)
+
+    def _build_rules(self) -> np.ndarray:
+        n = self.config.grid_size
+        rules = engine.new_rules(n)
+        r = rules[0]
+        r["num_channels"] = len(self.channels)
+        for index, code in enumerate(self.channels):
+            r["channel"][code] = index
+        r["reset_free"] = self.ecology.reset_free
+        r["horizon"] = self.config.horizon
+        r["reward_mode"] = engine.REWARD_MODE_IDS[self.ecology.reward]
+        bp = self.ecology.shaping.breakpoints
+        if len(bp) > engine.MAX_BREAKPOINTS:
+            raise ValueError(f"a shaping schedule may have at most {engine.MAX_BREAKPOINTS} breakpoints")
+        r["shaping"][: len(bp)] = bp
+        r["num_breakpoints"] = len(bp)
+        self.fill_rules(r)
+        return rules
+
+    def fill_rules(self, r: np.void) -> None:
+        """Write the task's tables into the rules record ``r`` (dynamism and shaping included)."""
+        raise NotImplementedError
+
+    def test_overrides(self) -> dict:
+        """Task parameters that differ between this task's training env and its test MDP."""
+        return {}
+
+    def test_mdp_kwargs(self) -> dict:
+        """Keyword arguments that make this environment's evaluation MDP with ``gymnasium.make``."""
+        return {**dataclasses.asdict(self.config), **TEST_MDP, **self.test_overrides()}
+
+    @property
+    def observation_split(self) -> tuple[int, int]:
+        """(view inputs, inventory inputs) of the observation: the two branches of the paper's network."""
+        c = len(self.channels)
+        return c * engine.VIEW_CELLS, c
+
+    @property
+    def grid_shape(self) -> tuple[int, int]:
+        """(rows, columns) of the grid, the shape of visitation maps indexed [y, x]."""
+        return self.config.grid_size, self.config.grid_size
+
+    @property
+    def world(self) -> np.void:
+        """The live state record of this environment's world (for inspection and tests)."""
+        return self._state[0]
+
+    # ---------------------------------------------------------------- gymnasium API
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode; with a seed (or on first use) also start a new life. Returns (obs, info)."""
+        super().reset(seed=seed)
+        if seed is not None or not self._seeded:
+            self._state["rng"][0] = world_key(self.np_random)
+            self._state["lifetime_step"][0] = 0
+            self._seeded = True
+        engine.reset_worlds(self._state, self.rules, np.ones(1, dtype=np.bool_), self._buffers.obs)
+        return self._buffers.obs[0].copy(), self._info(False, False)
+
+    def step(self, action):
+        """Advance the world one step. Returns (obs, reward, terminated, truncated, info)."""
+        if not self._seeded:
+            raise RuntimeError("call reset() before step()")
+        b = self._buffers
+        b.actions[0] = check_action(action)
+        engine.step_worlds(self._state, self.rules, b.actions, b.obs, b.rewards, b.terminated, b.truncated,
+                           b.solved, b.caught, False)
+        info = self._info(bool(b.solved[0]), bool(b.caught[0]))
+        return b.obs[0].copy(), float(b.rewards[0]), bool(b.terminated[0]), bool(b.truncated[0]), info
+
+    def _info(self, solved: bool, caught: bool) -> dict:
+        w = self._state[0]
+        agent = w["agent"]
+        info = {
+            "solved": solved,
+            "caught": caught,
+            "agent_pos": (int(agent[0]), int(agent[1])),
+            "lifetime_step": int(w["lifetime_step"]),
+            "completions": int(w["completions"]),
+        }
+        pickups, made = w["pickups"], w["made"]
+        for key, code in self._info_keys:
+            info[key] = int(pickups[code])
+        for code in self.products:
+            info[f"made_{NAMES[code]}"] = int(made[code])
+        return info
+
+    def render(self):
+        """An RGB frame of the world (``render_mode='rgb_array'``), or None without a render mode."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
+            return None
+        from gridtasks.render import render_world
+
+        return render_world(self._state[0], self.rules[0], self.channels)
+
+
+class StepBuffers:
+    """Preallocated inputs and outputs of the step kernel for ``b`` worlds."""
+
+    def __init__(self, b: int, obs_dim: int):
+        self.actions = np.zeros(b, dtype=np.int64)
+        self.obs = np.zeros((b, obs_dim), dtype=np.float32)
+        self.rewards = np.zeros(b, dtype=np.float64)
+        self.terminated = np.zeros(b, dtype=np.bool_)
+        self.truncated = np.zeros(b, dtype=np.bool_)
+        self.solved = np.zeros(b, dtype=np.bool_)
+        self.caught = np.zeros(b, dtype=np.bool_)
+
+
+def check_action(action) -> int:
+    """Return ``action`` as an int, or raise if it is not one of the 7 actions."""
+    if isinstance(action, np.ndarray) and action.shape == ():
+        action = action.item()
+    if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)) or not (
+        0 <= action < engine.NUM_ACTIONS
+    ):
+        raise ValueError(f"invalid action {action!r}: expected an integer in [0, {engine.NUM_ACTIONS - 1}] "
+                         f"({', '.join(engine.ACTION_NAMES)})")
+    return int(action)
+
+
+class GridTaskVectorEnv(VectorEnv):
+    """Many worlds of one grid task stepped by one compiled call (Gymnasium next-step autoreset).
+
+    ``reset(seed=s)`` seeds world i with ``s + i`` (or with ``seed[i]`` given a list); world i then
+    follows exactly the trajectory of ``gymnasium.make(id)`` reset with that seed under the same actions.
+    """
+
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 8,
+                                "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, env_class: type[GridTaskEnv], num_envs: int, copy: bool = True, **kwargs):
+        check_positive_int("num_envs", num_envs)
+        self.template = env_class(**kwargs)
+        self.num_envs = int(num_envs)
+        self.copy = copy
+        self.render_mode = self.template.render_mode
+        self.single_observation_space = self.template.observation_space
+        self.single_action_space = self.template.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.rules = self.template.rules
+        self._state = np.zeros(self.num_envs, dtype=engine.world_dtype(self.template.config.grid_size))
+        self._buffers = StepBuffers(self.num_envs, self.single_observation_space.shape[0])
+        self._seeded = False
+
+    @property
+    def ecology(self) -> Ecology:
+        """The resolved ecology knobs shared by every world."""
+        return self.template.ecology
+
+    @property
+    def worlds(self) -> np.ndarray:
+        """The live state records of all worlds."""
+        return self._state
+
+    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
+        """Reset every world (a new life for each when seeded). Returns (obs, info)."""
+        if seed is None and self._seeded:
+            keys = None
+        elif seed is None:
+            self._np_random, _ = seeding.np_random(None)
+            keys = [world_key(self._np_random) for _ in range(self.num_envs)]
+        else:
+            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, (int, np.integer)) else seed
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} worlds")
+            keys = [world_key(seeding.np_random(int(s))[0]) for s in seeds]
+            self._np_random, _ = seeding.np_random(int(seeds[0]))
+        if keys is not None:
+            self._state["rng"] = np.array(keys, dtype=np.uint64)
+            self._state["lifetime_step"] = 0
+            self._seeded = True
+        engine.reset_worlds(self._state, self.rules, np.ones(self.num_envs, dtype=np.bool_), self._buffers.obs)
+        return self._out(self._buffers.obs), self._info()
+
+    def step(self, actions):
+        """Step all worlds. Returns batched (obs, rewards, terminated, truncated, info)."""
+        if not self._seeded:
+            raise RuntimeError("call reset() before step()")
+        b = self._buffers
+        b.actions[:] = check_actions(actions, self.num_envs)
+        engine.step_worlds(self._state, self.rules, b.actions, b.obs, b.rewards, b.terminated, b.truncated,
+                           b.solved, b.caught, True)
+        return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
+                self._info())
+
+    def _out(self, array: np.ndarray) -> np.ndarray:
+        return array.copy() if self.copy else array
+
+    def _info(self) -> dict:
+        s, b = self._state, self._buffers
+        return {"solved": b.solved.copy(), "caught": b.caught.copy(), "agent_pos": s["agent"].copy(),
+                "lifetime_step": s["lifetime_step"].copy(), "completions": s["completions"].copy()}
+
+    def render(self):
+        """A tuple with one RGB frame per world."""
+        from gridtasks.render import render_world
+
+        if self.render_mode is None:
+            return None
+        return tuple(render_world(w, self.rules[0], self.template.channels) for w in self._state)
+
+
+def check_actions(actions, num_envs: int) -> np.ndarray:
+    """Validate a batch of actions: shape (num_envs,), integers in [0, 7)."""
+    a = np.asarray(actions)
+    if a.shape != (num_envs,) or not np.issubdtype(a.dtype, np.integer):
+        raise ValueError(f"actions must be an integer array of shape ({num_envs},), got {a.dtype} {a.shape}")
+    if a.size and (a.min() < 0 or a.max() >= engine.NUM_ACTIONS):
+        raise ValueError(f"actions must lie in [0, {engine.NUM_ACTIONS - 1}], got values from {a.min()} "
+                         f"to {a.max()}")
+    return a

@@ -1,0 +1,83 @@
+"""Scavenging (paper §5, Fig. 4, 5): find food while predators hunt you."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from gridtasks.codes import Code
+from gridtasks.engine import MAX_PREDATORS, code_mask
+from gridtasks.env import GridTaskEnv, check_positive_int
+
+
+@dataclass(frozen=True)
+class ScavengingConfig:
+    """Parameters of the scavenging task."""
+
+    grid_size: int = 10
+    """Side of the square grid, wall ring included."""
+    food_count: int = 2
+    """Food placed at reset and kept on the grid (one added per step when fewer)."""
+    predator_count: int = 2
+    """Predators alive at any time."""
+    predator_lifespan: int = 10
+    """Steps a predator lives before it reappears at a random cell."""
+    predator_penalty: float = 100.0
+    """Cost of each step the agent shares a cell with a predator (part of the task in every mode)."""
+    horizon: int = 200
+    """Episode length of the episodic env (the test horizon)."""
+
+    def __post_init__(self) -> None:
+        check_positive_int("grid_size", self.grid_size, 5)
+        check_positive_int("food_count", self.food_count, 0)
+        check_positive_int("predator_lifespan", self.predator_lifespan)
+        check_positive_int("horizon", self.horizon)
+        if not 0 <= self.predator_count <= MAX_PREDATORS or isinstance(self.predator_count, bool):
+            raise ValueError(f"predator_count must be an integer in [0, {MAX_PREDATORS}], "
+                             f"got {self.predator_count!r}")
+        if self.predator_penalty < 0:
+            raise ValueError(f"predator_penalty is a cost and must be >= 0, got {self.predator_penalty}")
+
+
+class ScavengingEnv(GridTaskEnv):
+    """Scavenging: pick up food; predators chase the agent and each step caught costs -100.
+
+    ## Actions (Discrete(7))
+    | 0 west | 1 east | 2 north | 3 south | 4 pick up | 5 interact (no-op here) | 6 place |
+
+    ## Observation (Box(0, 1, (104,), float32))
+    5×5 north-up view one-hot over (0 empty, 1 wall, 2 food, 3 predator) at index
+    ``channel·25 + row·5 + col``; a predator is drawn on top of whatever its cell holds (that cell then has
+    two ones). Then the carried object one-hot over the same 4 channels.
+
+    ## Rewards
+    +100 for picking up food in every mode; -``predator_penalty`` (100) on each step a predator shares the
+    agent's cell, in every mode. No intermediate stages, so ``subgoal`` and ``one_time`` equal sparse;
+    ``distance`` adds -0.01 × L1 distance to the nearest food on otherwise unrewarded steps.
+
+    ## Episode end
+    Episodic: terminated on picking up food, truncated after ``horizon``. Reset-free: never; food is eaten.
+
+    ## Creatures, dynamism and shaping
+    Predators are not grid objects: they walk over food. Each step (after the agent acts) a predator takes
+    the greedy L1 step toward the agent (ties: N, W, S, E, stay); with probability p (dynamism) it steps
+    in a uniformly random direction instead. After ``predator_lifespan`` steps it reappears at a random
+    cell other than the agent's. Food is replenished to ``food_count``, one per step.
+    shaping s(t): new food appears inside the salad-style window around the agent.
+    Test MDP: p = 0 (chasing predators), horizon 200.
+    """
+
+    Config = ScavengingConfig
+    channels = (Code.EMPTY, Code.WALL, Code.FOOD, Code.PREDATOR)
+    counted = (Code.FOOD,)
+
+    def fill_rules(self, r) -> None:
+        """Food replenishment (near the agent under shaping) and predators (random with probability p)."""
+        cfg = self.config
+        r["goal_pickup"] = Code.FOOD
+        r["initial"][Code.FOOD] = r["replenish"][Code.FOOD] = cfg.food_count
+        r["near_spawn"][Code.FOOD] = not self.ecology.shaping.is_zero
+        r["num_predators"] = cfg.predator_count
+        r["predator_lifespan"] = cfg.predator_lifespan
+        r["predator_penalty"] = cfg.predator_penalty
+        r["predator_wander_prob"] = self.ecology.dynamism
+        r["targets"][Code.EMPTY] = [code_mask(Code.FOOD), 0, 0]

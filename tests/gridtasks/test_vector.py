@@ -1,0 +1,102 @@
+"""The batched engine agrees with the single env world for world, and obeys the vector API."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import gridtasks
+from ecology import validation_seeds
+
+IDS = sorted(gridtasks.ENV_IDS.values())
+KNOBS = [
+    {"dynamism": 0.3, "reward": "distance", "horizon": 40},
+    {"dynamism": 0.1, "shaping": "linear:1:0:300", "reset_free": True, "reward": "one_time"},
+]
+
+
+@pytest.mark.parametrize("env_id", IDS)
+@pytest.mark.parametrize("knobs", KNOBS, ids=["episodic", "reset-free"])
+def test_batched_worlds_match_single_envs_step_for_step(env_id, knobs):
+    num, steps, seed = 4, 300, 11
+    vec = gym.make_vec(env_id, num_envs=num, vectorization_mode="vector_entry_point", **knobs)
+    singles = [gym.make(env_id, **knobs) for _ in range(num)]
+    actions = np.random.default_rng(0).integers(0, 7, (steps, num))
+    vobs, _ = vec.reset(seed=seed)
+    sobs = [env.reset(seed=seed + i)[0] for i, env in enumerate(singles)]
+    np.testing.assert_array_equal(vobs, np.stack(sobs))
+    pending_reset = [False] * num
+    for t in range(steps):
+        vobs, vrew, vterm, vtrunc, vinfo = vec.step(actions[t])
+        for i, env in enumerate(singles):
+            if pending_reset[i]:  # next-step autoreset: the vector world resets, its action is ignored
+                obs, _ = env.reset()
+                rew, term, trunc, solved = 0.0, False, False, False
+                pending_reset[i] = False
+            else:
+                obs, rew, term, trunc, info = env.step(int(actions[t, i]))
+                solved = info["solved"]
+                pending_reset[i] = term or trunc
+            np.testing.assert_array_equal(vobs[i], obs, err_msg=f"world {i} step {t}")
+            assert (vrew[i], vterm[i], vtrunc[i], vinfo["solved"][i]) == (rew, term, trunc, solved)
+
+
+def test_batched_same_seed_same_trajectory_and_seed_list():
+    def run(seed):
+        vec = gym.make_vec("gridtasks/Hunting-v0", num_envs=8, vectorization_mode="vector_entry_point",
+                           dynamism=0.4, reset_free=True)
+        out = [vec.reset(seed=seed)[0]]
+        for a in np.random.default_rng(5).integers(0, 7, (100, 8)):
+            out.append(vec.step(a)[0])
+        return np.stack(out)
+
+    np.testing.assert_array_equal(run(3), run(3))
+    np.testing.assert_array_equal(run([3, 4, 5, 6, 7, 8, 9, 10]), run(3))
+    assert not np.array_equal(run(3), run(4))
+
+
+def test_vector_env_spaces_and_action_validation():
+    vec = gym.make_vec("gridtasks/Factory-v0", num_envs=5, vectorization_mode="vector_entry_point")
+    obs, info = vec.reset(seed=0)
+    assert obs.shape == (5, 208) and obs.dtype == np.float32
+    assert vec.single_action_space.n == 7 and vec.action_space.shape == (5,)
+    assert info["agent_pos"].shape == (5, 2)
+    with pytest.raises(ValueError, match="shape"):
+        vec.step(np.zeros(4, dtype=int))
+    with pytest.raises(ValueError, match="must lie in"):
+        vec.step(np.full(5, 7))
+    with pytest.raises(ValueError, match="4 seeds for 5 worlds"):
+        vec.reset(seed=[1, 2, 3, 4])
+
+
+def test_vector_render_gives_one_frame_per_world():
+    vec = gym.make_vec("gridtasks/Scavenging-v0", num_envs=3, vectorization_mode="vector_entry_point",
+                       render_mode="rgb_array")
+    vec.reset(seed=0)
+    frames = vec.render()
+    assert len(frames) == 3 and frames[0].shape == frames[2].shape
+
+
+@pytest.mark.parametrize("task", sorted(gridtasks.TASKS))
+def test_validation_layouts_are_fixed_and_match_the_test_mdp(task):
+    first = gridtasks.validation_layouts(task, n=20)
+    again = gridtasks.validation_layouts(task, n=20, dynamism=0.5, shaping=1.0, reset_free=True)
+    np.testing.assert_array_equal(first["grid"], again["grid"])
+    assert len({g.tobytes() + a.tobytes() for g, a in zip(first["grid"], first["agent"])}) == 20
+    single = gridtasks.make_test_env(task)
+    single.reset(seed=validation_seeds(20)[7])
+    np.testing.assert_array_equal(single.world["grid"], first["grid"][7])
+    assert single.ecology.is_test_mdp
+
+
+def test_salad_validation_layouts_hold_one_of_each_ingredient():
+    grids = gridtasks.validation_layouts("salad", n=50)["grid"]
+    assert ((grids == gridtasks.Code.LETTUCE).sum(axis=(1, 2)) == 1).all()
+    assert ((grids == gridtasks.Code.CARROT).sum(axis=(1, 2)) == 1).all()
+
+
+def test_validation_copies_repeat_the_same_layouts():
+    vec, obs = gridtasks.make_validation_envs("hunting", n=10, copies=3)
+    np.testing.assert_array_equal(obs[:10], obs[10:20])
+    np.testing.assert_array_equal(vec.worlds["grid"][:10], vec.worlds["grid"][20:])
