@@ -253,9 +253,10 @@ def spawn(w, r, group: int, near: bool, s: float) -> bool:
     if not near:
         return place_random(w, n, code, 1, 1, n - 1, n - 1)
     side = window_side(n, s)
-    x0 = min(max(w.agent[0] - side // 2, 0), n - 1)
-    y0 = min(max(w.agent[1] - side // 2, 0), n - 1)
-    return place_random(w, n, code, x0, y0, min(x0 + side, n), min(y0 + side, n))
+    # The window is shifted (not cut) at the walls so that it always covers side × side interior cells.
+    x0 = max(1, min(w.agent[0] - side // 2, n - 1 - side))
+    y0 = max(1, min(w.agent[1] - side // 2, n - 1 - side))
+    return place_random(w, n, code, x0, y0, min(x0 + side, n - 1), min(y0 + side, n - 1))
 
 
 @nb.njit(cache=True)
@@ -565,18 +566,18 @@ def step_world(w, r, action: int, obs):
     s = shaping_strength(r, w.lifetime_step)
     start_x, start_y = w.agent[0], w.agent[1]
     picked, made, dropped, delivered = act(w, r, action)
+    solved = delivered or (picked != 0 and picked == r.goal_pickup)
+    if solved:
+        w.completions += 1
+        if r.reset_free and not delivered:
+            w.inventory = 0  # the world goes on: the completed task's object is consumed (and regrows)
     move_creatures(w, r, s)
     caught = move_predators(w, r, start_x, start_y) if r.num_predators > 0 else False
     wither(w, r)
     grow_resources(w, r, s)
-    solved = delivered or (picked != 0 and picked == r.goal_pickup)
     reward = task_reward(w, r, picked, made, dropped, solved)
     if caught:
         reward -= r.predator_penalty
-    if solved:
-        w.completions += 1
-        if r.reset_free and not delivered:
-            w.inventory = 0  # the world goes on: the completed task's object is consumed
     w.episode_step += 1
     w.lifetime_step += 1
     terminated = solved and not r.reset_free
