@@ -116,8 +116,11 @@ class GridTaskEnv(gym.Env):
         return {}
 
     def test_mdp_kwargs(self) -> dict:
-        """Keyword arguments that make this environment's evaluation MDP with ``gymnasium.make``."""
-        return {**dataclasses.asdict(self.config), **TEST_MDP, **self.test_overrides()}
+        """Keyword arguments that make this environment's evaluation MDP with ``gymnasium.make``: the same
+        task parameters, the test MDP's knobs, the task's test overrides and its test horizon (the
+        ``horizon`` default of its ``Config``, whatever episode length this env trains with)."""
+        test_horizon = {f.name: f.default for f in dataclasses.fields(self.Config)}["horizon"]
+        return {**dataclasses.asdict(self.config), **TEST_MDP, "horizon": test_horizon, **self.test_overrides()}
 
     @property
     def observation_split(self) -> tuple[int, int]:

@@ -114,6 +114,8 @@ def test_test_mdp_kwargs_make_the_evaluation_env(env_id):
     test_env = gym.make(env_id, **env.test_mdp_kwargs()).unwrapped
     assert test_env.ecology.is_test_mdp
     assert test_env.config.grid_size == env.config.grid_size
+    trained_long = gym.make(env_id, horizon=999).unwrapped
+    assert gym.make(env_id, **trained_long.test_mdp_kwargs()).unwrapped.config.horizon == env.config.horizon
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,73 @@
+"""End-to-end smoke runs: every task trains for a few thousand steps and writes a complete run directory."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from train.config import TrainConfig
+from train.tasks import TASKS
+from train.trainer import Trainer
+
+TINY = dict(seeds=2, steps=2200, updates_per_epoch=50, eval_every=1000, eval_rollouts=4, eval_horizon=40,
+            buffer_size=5_000, progress=False)
+CONDITIONS = {
+    "salad": dict(dynamism=0.1, shaping="linear:1:0:2000", reward="subgoal"),
+    "hunting": dict(dynamism=0.2, reset_free=True),
+    "scavenging": dict(dynamism=0.5, reward="distance"),
+    "factory": dict(reset_free=True, reward="one_time", rnd=True),
+    "walled-salad": dict(shaping=0.5, horizon=50),
+    "foodcollector": dict(dynamism=0.5, reset_free=True),
+}
+
+
+def test_every_task_has_a_smoke_condition():
+    assert set(CONDITIONS) == set(TASKS)
+
+
+@pytest.mark.parametrize("task", list(CONDITIONS))
+def test_task_trains_end_to_end(task, tmp_path):
+    cfg = TrainConfig().replace(task=task, **TINY, **CONDITIONS[task])
+    trainer = Trainer(cfg, tmp_path)
+    try:
+        rows = trainer.run()
+    finally:
+        trainer.close()
+    assert trainer.step == cfg.total_steps == 2200
+    assert [r["step"] for r in rows] == [1200, 1200, 2200, 2200]
+    for row in rows:
+        assert math.isfinite(row["loss"]) and math.isfinite(row["return"])
+        assert 0.0 <= row["success"] <= 1.0 if TASKS[task].metric == "success" else math.isnan(row["success"])
+    with open(tmp_path / "metrics.csv") as f:
+        assert len(list(csv.DictReader(f))) == 4
+    visits = np.load(tmp_path / "visits.npy")
+    assert visits.shape == (2, *trainer.info.visit_shape) and visits.sum(axis=(1, 2)).tolist() == [2200, 2200]
+    assert (tmp_path / "visits" / "000002200.npy").exists()
+    assert json.loads((tmp_path / "config.json").read_text())["env"]["task"] == task
+    assert (tmp_path / "checkpoint.pkl").stat().st_size > 0
+
+
+def test_episode_boundaries_are_not_terminals_on_truncation(tmp_path):
+    cfg = TrainConfig().replace(task="salad", horizon=25, steps=700, updates_per_epoch=5, eval_every=500,
+                                eval_rollouts=2, eval_horizon=5, buffer_size=2_000, progress=False)
+    trainer = Trainer(cfg)
+    trainer.train_epoch()
+    flags = trainer.replay.flags[0, : trainer.replay.size[0]]
+    finals = np.flatnonzero((flags & 2) == 0)  # final-observation slots, one per finished episode
+    assert finals.size >= (700 // 26) - 1
+    before_final = flags[finals - 1]
+    rewards = trainer.replay.reward[0, finals - 1]
+    # an episode that ended without a solve was truncated: stored as non-terminal; a solve terminates it
+    assert np.all((before_final & 1).astype(bool) == (rewards >= 100))
+
+
+def test_tensorboard_logging_is_optional_and_lazy(tmp_path):
+    pytest.importorskip("tensorboard")
+    cfg = TrainConfig().replace(task="salad", steps=700, updates_per_epoch=5, eval_every=500, eval_rollouts=2,
+                                eval_horizon=5, buffer_size=2_000, progress=False, tensorboard=True)
+    Trainer(cfg, tmp_path).run()
+    assert list((tmp_path / "tensorboard").glob("events.out.tfevents.*"))

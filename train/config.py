@@ -1,0 +1,284 @@
+"""Frozen configuration of one training condition: environment knobs, double DQN, RND, evaluation, run.
+
+Every field carries its documentation as an attribute docstring (the string right below it); `field_docs`
+reads them back from the source so the CLI's ``--help`` and this file never disagree. Defaults are the
+original code's (Co-Reyes et al., 2020; `jcoreyes/ecologicalrl`), except where a docstring says otherwise.
+Values that follow from others are properties, never stored twice.
+"""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import functools
+import inspect
+import textwrap
+from dataclasses import dataclass, field
+from typing import Any
+
+from ecology import REWARD_MODES, VALIDATION_SEED_BASE, parse_schedule
+
+RUNTIME = {"runtime": True}
+"""Field metadata marking settings that may change when a run is resumed (they do not alter its results)."""
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Which task, and the ecological knobs of its training environment."""
+
+    task: str = "salad"
+    """Task name: salad, hunting, scavenging, factory, walled-salad or foodcollector."""
+    dynamism: float = 0.0
+    """Dynamism p in [0, 1]: rate of change independent of the agent (0 = static original task)."""
+    shaping: str = "0"
+    """Environment-shaping strength schedule over the lifetime step: a number in [0, 1] or e.g. 'linear:1:0:280000'."""
+    reset_free: bool = field(default=False, metadata={"negative": "episodic"})
+    """Non-episodic training (one reset, ever) instead of episodic training."""
+    reward: str = field(default="sparse", metadata={"choices": REWARD_MODES})
+    """Reward mode of the training environment (the food collector only has 'sparse')."""
+    horizon: int = 200
+    """Episode length of episodic training (ignored when reset-free)."""
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    """Extra task parameters passed to the environment constructor (CLI: KEY=VALUE, the value read as JSON)."""
+
+    def __post_init__(self) -> None:
+        parse_schedule(self.shaping)
+        if self.reward not in REWARD_MODES:
+            raise ValueError(f"unknown reward mode {self.reward!r}; choose one of {', '.join(REWARD_MODES)}")
+        if self.horizon < 1:
+            raise ValueError(f"horizon must be a positive number of steps, got {self.horizon}")
+
+    @property
+    def env_make_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments for `gymnasium.make`/`make_vec` of the training environment."""
+        return {"dynamism": self.dynamism, "shaping": self.shaping, "reset_free": self.reset_free,
+                "reward": self.reward, "horizon": self.horizon, **self.env_kwargs}
+
+
+@dataclass(frozen=True)
+class DQNConfig:
+    """Double DQN with the paper's two-branch Q-network (original code, section 4 of the reference)."""
+
+    lr: float = 1e-4
+    """Adam learning rate."""
+    adam_eps: float = 1e-8
+    """Adam epsilon (PyTorch's default, as in the original)."""
+    gamma: float = 0.99
+    """Discount factor."""
+    batch_size: int = 64
+    """Transitions per gradient step, per seed (the paper's text says 256; its code uses 64)."""
+    buffer_size: int = 500_000
+    """Replay capacity per seed, in stored observations (circular, uniform sampling)."""
+    tau: float = 0.001
+    """Polyak rate of the target network, applied after every gradient step."""
+    grad_clip: float = 5.0
+    """Maximum global gradient norm per seed."""
+    eps_start: float = 1.0
+    """Exploration epsilon at step 0."""
+    eps_end: float = 0.1
+    """Exploration epsilon after the decay."""
+    eps_decay_steps: int = 90_000
+    """Environment steps over which epsilon falls linearly from eps_start to eps_end."""
+    warmup_steps: int = 200
+    """Environment steps collected before the first gradient step."""
+    epoch_steps: int = 500
+    """Environment steps collected per epoch (each epoch then takes updates_per_epoch gradient steps)."""
+    updates_per_epoch: int = 500
+    """Gradient steps per epoch."""
+    view_layers: tuple[int, ...] = (64, 64, 32)
+    """Layer widths of the view branch (the last one is its linear output)."""
+    inventory_layers: tuple[int, ...] = (16, 16, 16)
+    """Layer widths of the inventory branch (the last one is its linear output)."""
+    head_layers: tuple[int, ...] = (16, 16)
+    """Hidden widths of the head on the concatenated branch outputs (then one linear layer to the actions)."""
+    init: str = field(default="rlkit", metadata={"choices": ("rlkit", "torch")})
+    """Weight init: 'rlkit' (original: hidden U(+-1/sqrt(fan_out)), bias 0.1, output layers U(+-3e-3)) or 'torch'."""
+    target_init: str = field(default="independent", metadata={"choices": ("independent", "copy")})
+    """Target network start: its own random init ('independent', as the original) or a copy of the online one."""
+    float_obs_dtype: str = field(default="float16", metadata={"choices": ("float16", "float32")})
+    """Replay storage of real-valued observations (binary grid observations are always bit-packed)."""
+
+    def __post_init__(self) -> None:
+        if self.batch_size < 1 or self.buffer_size < 2 or self.epoch_steps < 1:
+            raise ValueError("batch_size must be >= 1, buffer_size >= 2 and epoch_steps >= 1")
+        if self.warmup_steps < 2:
+            raise ValueError("warmup_steps must be >= 2 so that a transition exists before the first update")
+        if not (0.0 < self.tau <= 1.0 and 0.0 <= self.gamma <= 1.0):
+            raise ValueError(f"tau must lie in (0, 1] and gamma in [0, 1], got tau={self.tau}, gamma={self.gamma}")
+
+    def epsilon(self, step: int) -> float:
+        """The exploration epsilon after ``step`` environment steps (linear decay, then constant)."""
+        frac = min(max(step, 0) / self.eps_decay_steps, 1.0) if self.eps_decay_steps > 0 else 1.0
+        return self.eps_start + (self.eps_end - self.eps_start) * frac
+
+
+@dataclass(frozen=True)
+class RNDConfig:
+    """Random network distillation: an intrinsic bonus added to the reward at sampling time."""
+
+    rnd: bool = False
+    """Add the RND exploration bonus."""
+    rnd_weight: float = 1.0
+    """Weight of the normalised RND bonus added to the environment reward."""
+    rnd_lr: float = 3e-4
+    """Adam learning rate of the RND predictor (one step per DQN update, on the sampled next observations)."""
+    rnd_layers: tuple[int, ...] = (128, 128, 32)
+    """Layer widths of the RND target and predictor MLPs (the last one is the embedding size)."""
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    """The evaluation protocol: fixed validation layouts of the test MDP, epsilon-greedy policy."""
+
+    eval_every: int = 5_000
+    """Evaluate every this many environment steps (a multiple of epoch_steps)."""
+    eval_epsilon: float = 0.1
+    """Epsilon of the evaluation policy."""
+    eval_rollouts: int | None = None
+    """Validation rollouts per seed (default: the task's 100 validation layouts; food collector: 10 episodes)."""
+    eval_horizon: int | None = None
+    """Length of each validation rollout (default: the task's test horizon)."""
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Seeds and budget of the run, and settings that do not change its results."""
+
+    seeds: int = 1
+    """Number of seeds of this condition trained together in one process."""
+    first_seed: int = 0
+    """Seed of the first agent; the others are first_seed + 1, + 2, ..."""
+    steps: int = field(default=1_000_000, metadata=RUNTIME)
+    """Environment steps per seed (warm-up included; rounded up to whole epochs)."""
+    checkpoint_every: int = field(default=50_000, metadata=RUNTIME)
+    """Write a checkpoint every this many environment steps (and at the start and the end)."""
+    threads: int = field(default=1, metadata=RUNTIME)
+    """torch intra-op threads (1 is fastest when several runs or processes share the CPU)."""
+    tensorboard: bool = field(default=False, metadata=RUNTIME)
+    """Also log the metrics to TensorBoard (in RUN_DIR/tensorboard)."""
+    progress: bool = field(default=True, metadata=RUNTIME)
+    """Show a progress bar."""
+
+    def __post_init__(self) -> None:
+        if self.seeds < 1 or self.first_seed < 0:
+            raise ValueError(f"need seeds >= 1 and first_seed >= 0, got {self.seeds} and {self.first_seed}")
+        if self.threads < 1:
+            raise ValueError(f"threads must be >= 1, got {self.threads}")
+        if self.first_seed + self.seeds > VALIDATION_SEED_BASE:
+            raise ValueError(f"training seeds must stay below {VALIDATION_SEED_BASE} (the validation seeds)")
+
+    @property
+    def seed_list(self) -> list[int]:
+        """The seeds trained in this run."""
+        return list(range(self.first_seed, self.first_seed + self.seeds))
+
+
+SECTIONS = {"env": EnvConfig, "dqn": DQNConfig, "rnd": RNDConfig, "eval": EvalConfig, "run": RunConfig}
+"""The sections of `TrainConfig`, by attribute name."""
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One training condition with all its seeds."""
+
+    env: EnvConfig = field(default_factory=EnvConfig)
+    dqn: DQNConfig = field(default_factory=DQNConfig)
+    rnd: RNDConfig = field(default_factory=RNDConfig)
+    eval: EvalConfig = field(default_factory=EvalConfig)
+    run: RunConfig = field(default_factory=RunConfig)
+
+    def __post_init__(self) -> None:
+        if self.eval.eval_every % self.dqn.epoch_steps:
+            raise ValueError(f"eval_every ({self.eval.eval_every}) must be a multiple of epoch_steps "
+                             f"({self.dqn.epoch_steps})")
+
+    @property
+    def num_epochs(self) -> int:
+        """Epochs after the warm-up (the step budget rounded up to whole epochs)."""
+        after = max(self.run.steps - self.dqn.warmup_steps, 0)
+        return -(-after // self.dqn.epoch_steps)
+
+    @property
+    def total_steps(self) -> int:
+        """Environment steps per seed the run will take."""
+        return self.dqn.warmup_steps + self.num_epochs * self.dqn.epoch_steps
+
+    @property
+    def eval_epochs(self) -> int:
+        """Epochs between evaluations."""
+        return self.eval.eval_every // self.dqn.epoch_steps
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-friendly nested dict (tuples become lists)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
+        """Rebuild a config from `to_dict` output (unknown keys raise)."""
+        parts = {}
+        for name, section in SECTIONS.items():
+            values = dict(data.get(name, {}))
+            known = {f.name: f for f in dataclasses.fields(section)}
+            unknown = set(values) - set(known)
+            if unknown:
+                raise ValueError(f"unknown {name} setting(s) {sorted(unknown)}")
+            for key, value in values.items():
+                if isinstance(value, list):
+                    values[key] = tuple(value)
+            parts[name] = section(**values)
+        return cls(**parts)
+
+    def replace(self, **flat: Any) -> TrainConfig:
+        """A copy with fields changed by their (unique, section-less) names, e.g. ``replace(lr=3e-4)``."""
+        owners = field_owners()
+        grouped: dict[str, dict[str, Any]] = {}
+        for key, value in flat.items():
+            if key not in owners:
+                raise KeyError(f"no config field named {key!r}")
+            grouped.setdefault(owners[key], {})[key] = value
+        changes = {name: dataclasses.replace(getattr(self, name), **vals) for name, vals in grouped.items()}
+        return dataclasses.replace(self, **changes)
+
+    def identity(self) -> dict[str, Any]:
+        """The settings that define the run's results (everything but the RUNTIME fields)."""
+        out = {}
+        for name, section in SECTIONS.items():
+            for f in dataclasses.fields(section):
+                if not f.metadata.get("runtime"):
+                    out[f.name] = _jsonable(getattr(getattr(self, name), f.name))
+        return out
+
+
+def _jsonable(value: Any) -> Any:
+    """Tuples as lists, so values compare equal to their JSON round trip."""
+    if isinstance(value, tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    return value
+
+
+@functools.cache
+def field_owners() -> dict[str, str]:
+    """Map each field name to its section; names are unique across sections (checked here)."""
+    owners: dict[str, str] = {}
+    for name, section in SECTIONS.items():
+        for f in dataclasses.fields(section):
+            if f.name in owners:
+                raise RuntimeError(f"config field {f.name!r} appears in two sections")
+            owners[f.name] = name
+    return owners
+
+
+@functools.cache
+def field_docs(cls: type) -> dict[str, str]:
+    """The attribute docstrings of a dataclass, read from its source: {field name: docstring}."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+    body = tree.body[0].body
+    docs = {}
+    for node, nxt in zip(body, body[1:]):
+        if (isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name)
+                and isinstance(nxt, ast.Expr) and isinstance(nxt.value, ast.Constant)
+                and isinstance(nxt.value.value, str)):
+            docs[node.target.id] = " ".join(nxt.value.value.split())
+    return docs

@@ -1,0 +1,343 @@
+"""The training loop: K seeds of one condition, one vector environment, one replay buffer, one process.
+
+Seed k owns world k of the vector environment (reset once with seed k), row k of every network buffer and
+four random streams of its own (network init, exploration, replay sampling, RND init), so its run does not
+depend on which other seeds train beside it. The schedule is the original code's: ``warmup_steps`` steps,
+then epochs of ``epoch_steps`` environment steps followed by ``updates_per_epoch`` gradient steps;
+evaluation every ``eval_every`` steps. Episodic worlds restart through Gymnasium's next-step autoreset:
+the step after an episode's end only resets the world (its action is ignored, nothing is stored), and it
+counts toward the step budget like any other.
+"""
+
+from __future__ import annotations
+
+import math
+import signal
+import threading
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from train.config import TrainConfig
+from train.dqn import DoubleDQN
+from train.evaluate import Evaluator
+from train.network import QNetwork
+from train.replay import Replay
+from train.rnd import RND
+from train.rundir import RunDir
+from train.tasks import EnvInfo, Task, get_task, make_vector_env, probe, visit_cells
+
+STREAMS = ("init", "explore", "sample", "rnd")
+"""The random streams of each seed, spawned from its SeedSequence in this order."""
+CHECKPOINT_VERSION = 1
+
+
+def resolve(cfg: TrainConfig, task: Task, info: EnvInfo) -> TrainConfig:
+    """Fill the task-dependent defaults (validation rollouts, test horizon) into ``cfg``."""
+    return cfg.replace(eval_rollouts=cfg.eval.eval_rollouts or task.eval_rollouts,
+                       eval_horizon=cfg.eval.eval_horizon or int(info.test_kwargs["horizon"]))
+
+
+def seed_streams(seed: int) -> dict[str, np.random.Generator]:
+    """The independent random generators of one seed."""
+    return {name: np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
+            for i, name in enumerate(STREAMS)}
+
+
+class Trainer:
+    """Trains every seed of one condition together; optionally keeps a run directory."""
+
+    def __init__(self, cfg: TrainConfig, run_dir: str | Path | None = None, resume: bool = False) -> None:
+        self.task = get_task(cfg.env.task)
+        self.info = probe(self.task, cfg.env)
+        self.cfg = cfg = resolve(cfg, self.task, self.info)
+        torch.set_num_threads(cfg.run.threads)
+        # Adam's second moments of inputs that are never active decay through the denormal range, where
+        # CPU arithmetic is ~100x slower; flushing only changes values below ~1e-38 (to zero).
+        torch.set_flush_denormal(True)
+        self.seeds = cfg.run.seed_list
+        streams = [seed_streams(s) for s in self.seeds]
+        self.rngs = {name: [s[name] for s in streams] for name in STREAMS}
+        net = QNetwork(self.info.view_dim, self.info.obs_dim - self.info.view_dim, self.info.num_actions,
+                       cfg.dqn.view_layers, cfg.dqn.inventory_layers, cfg.dqn.head_layers)
+        self.agent = DoubleDQN(net, cfg.dqn, self.rngs["init"])
+        self.rnd = RND(self.info.obs_dim, cfg.rnd, self.rngs["rnd"]) if cfg.rnd.rnd else None
+        self.replay = Replay(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
+                             cfg.dqn.float_obs_dtype)
+        self.env = make_vector_env(self.task.env_id, self.num_agents, cfg.env.env_make_kwargs)
+        self._evaluator: Evaluator | None = None
+        self.run_dir = RunDir(run_dir) if run_dir is not None else None
+        self._fresh_state()
+        if self.run_dir is not None:
+            self.run_dir.prepare(cfg, resume)
+            if resume:
+                self.load_state_dict(self.run_dir.load_checkpoint(cfg))
+
+    @property
+    def num_agents(self) -> int:
+        """K, the number of seeds trained together."""
+        return len(self.seeds)
+
+    def _fresh_state(self) -> None:
+        """Counters and accumulators of a run that has not started."""
+        k = self.num_agents
+        self.step = 0
+        self.epoch = 0
+        self.obs: np.ndarray | None = None
+        self.autoreset = np.zeros(k, dtype=bool)
+        self.visits = np.zeros((k, *self.info.visit_shape), dtype=np.int64)
+        self.loss_sum = torch.zeros(k)
+        self.loss_count = 0
+        self.train_reward = np.zeros(k)
+        self.rows: list[dict[str, Any]] = []
+        self.last_checkpoint = -1
+        self._interval = [0, 0.0]  # steps and seconds of training since the last evaluation
+        self._agent_index = np.arange(k)
+
+    # ---- the two phases -------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Reset each seed's world with its own seed (the only seeded reset of the run)."""
+        self.obs, _ = self.env.reset(seed=list(self.seeds))
+
+    def collect(self, n: int) -> None:
+        """Take ``n`` epsilon-greedy environment steps in every world and store the transitions."""
+        if self.obs is None:
+            self.start()
+        draws = np.stack([rng.random((n, 2)) for rng in self.rngs["explore"]], axis=1)  # (n, K, 2)
+        random_actions = (draws[..., 1] * self.info.num_actions).astype(np.int64)
+        for i in range(n):
+            explore = draws[i, :, 0] < self.cfg.dqn.epsilon(self.step)
+            actions = random_actions[i]
+            if not explore.all():
+                with torch.no_grad():
+                    greedy = self.agent.greedy(torch.from_numpy(self.obs).unsqueeze(1))[:, 0]
+                actions = np.where(explore, actions, greedy)
+            self._env_step(actions)
+
+    def _env_step(self, actions: np.ndarray) -> None:
+        """Step every world once with ``actions`` and record what happened."""
+        stored = ~self.autoreset  # worlds whose previous step ended only reset now
+        encoded = self.replay.encode(self.obs)
+        obs, reward, terminated, truncated, info = self.env.step(actions)
+        self.replay.add(stored, encoded, actions, reward, terminated)
+        ended = (terminated | truncated) & stored
+        if ended.any():  # the final observation gets its own slot: it is the last transition's next state
+            self.replay.add(ended, self.replay.encode(obs))
+        self.autoreset = ended
+        rows, cols = visit_cells(info["agent_pos"], self.info.visit_shape, self.info.grid)
+        self.visits[self._agent_index, rows, cols] += 1
+        self.train_reward += reward
+        self.obs = obs
+        self.step += 1
+
+    def learn(self, n: int) -> None:
+        """Take ``n`` gradient steps for every seed, each on its own minibatch."""
+        slots = self.replay.sample_indices(self.rngs["sample"], n, self.cfg.dqn.batch_size)
+        with torch.no_grad():
+            for i in range(n):
+                batch = self.replay.batch(slots[:, i])
+                rewards = batch.rewards
+                if self.rnd is not None:
+                    rewards = rewards + self.rnd.bonus(batch.next_obs)
+                self.loss_sum += self.agent.update(batch.obs_pairs, batch.actions, rewards, batch.terminated)
+                self.loss_count += 1
+
+    def train_epoch(self) -> None:
+        """Collect one epoch of steps (after the warm-up, if not done yet), then learn from the buffer."""
+        began = time.perf_counter()
+        start_step = self.step
+        if self.step < self.cfg.dqn.warmup_steps:
+            self.collect(self.cfg.dqn.warmup_steps - self.step)
+        self.collect(self.cfg.dqn.epoch_steps)
+        self.learn(self.cfg.dqn.updates_per_epoch)
+        self.epoch += 1
+        self._interval[0] += self.step - start_step
+        self._interval[1] += time.perf_counter() - began
+
+    # ---- evaluation and logging -----------------------------------------------------------------------
+
+    @property
+    def evaluator(self) -> Evaluator:
+        """The evaluation protocol's batched environment (built on first use)."""
+        if self._evaluator is None:
+            test_kwargs = {**self.info.test_kwargs, "horizon": self.cfg.eval.eval_horizon}
+            self._evaluator = Evaluator(self.task.env_id, test_kwargs, self.num_agents,
+                                        self.cfg.eval.eval_rollouts, self.cfg.eval.eval_epsilon,
+                                        self.info.num_actions)
+        return self._evaluator
+
+    def evaluate(self) -> list[dict[str, Any]]:
+        """Run the evaluation protocol, append one metrics row per seed, and return those rows."""
+        result = self.evaluator(self.agent, self.seeds, self.step)
+        steps, seconds = self._interval
+        rate = steps / seconds if seconds > 0 else math.nan
+        losses = (self.loss_sum / max(self.loss_count, 1)).tolist()
+        rows = []
+        for k, seed in enumerate(self.seeds):
+            rows.append({
+                "step": self.step, "seed": seed, "epsilon": self.cfg.dqn.epsilon(self.step),
+                "loss": losses[k] if self.loss_count else math.nan,
+                "success": float(result.success[k]) if self.task.metric == "success" else math.nan,
+                "return": float(result.returns[k]), "train_reward": float(self.train_reward[k]),
+                "steps_per_s": rate,
+            })
+        self.rows += rows
+        self.loss_sum.zero_()
+        self.loss_count = 0
+        self.train_reward[:] = 0.0
+        self._interval = [0, 0.0]
+        return rows
+
+    # ---- the whole run --------------------------------------------------------------------------------
+
+    def run(self) -> list[dict[str, Any]]:
+        """Train to the step budget (from wherever the run stands), evaluating and checkpointing on schedule.
+
+        SIGINT/SIGTERM stop the run cleanly at the end of the current epoch, with a checkpoint.
+        Returns all metrics rows.
+        """
+        cfg = self.cfg
+        if self.obs is None:
+            self.start()
+        if self.last_checkpoint < 0:
+            self.save()
+        logger = _Logger(self.run_dir, cfg) if self.run_dir is not None else None
+        with _stop_on_signal() as stop, _progress(cfg, self.step) as bar:
+            while self.epoch < cfg.num_epochs and not stop.is_set():
+                before = self.step
+                self.train_epoch()
+                done = self.epoch == cfg.num_epochs
+                if self.epoch % cfg.eval_epochs == 0 or done:
+                    rows = self.evaluate()
+                    if logger is not None:
+                        logger.log(self, rows)
+                    bar.set_postfix(_postfix(rows, self.num_agents, cfg), refresh=False)
+                if done or stop.is_set() or self.step - self.last_checkpoint >= cfg.run.checkpoint_every:
+                    self.save()
+                bar.update(self.step - before)
+        if logger is not None:
+            logger.close()
+        return self.rows
+
+    def save(self) -> None:
+        """Write a checkpoint (if this trainer keeps a run directory)."""
+        self.last_checkpoint = self.step
+        if self.run_dir is not None:
+            self.run_dir.save_checkpoint(self.state_dict())
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to continue the run exactly (the environment is pickled whole)."""
+        return {
+            "version": CHECKPOINT_VERSION, "config": self.cfg.to_dict(), "step": self.step,
+            "epoch": self.epoch, "obs": self.obs, "autoreset": self.autoreset.copy(), "env": self.env,
+            "agent": self.agent.state_dict(), "rnd": self.rnd.state_dict() if self.rnd else None,
+            "replay": self.replay.state_dict(),
+            "rngs": {name: [g.bit_generator.state for g in gens] for name, gens in self.rngs.items()},
+            "visits": self.visits.copy(), "loss_sum": self.loss_sum.clone(), "loss_count": self.loss_count,
+            "train_reward": self.train_reward.copy(), "rows": list(self.rows),
+            "last_checkpoint": self.last_checkpoint,
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a `state_dict` (same resolved configuration)."""
+        if state.get("version") != CHECKPOINT_VERSION:
+            raise ValueError(f"checkpoint version {state.get('version')} is not {CHECKPOINT_VERSION}")
+        self.env.close()
+        self.env = state["env"]
+        self.agent.load_state_dict(state["agent"])
+        if self.rnd is not None:
+            self.rnd.load_state_dict(state["rnd"])
+        self.replay.load_state_dict(state["replay"])
+        for name, gens in self.rngs.items():
+            for g, saved in zip(gens, state["rngs"][name]):
+                g.bit_generator.state = saved
+        self.step, self.epoch, self.obs = state["step"], state["epoch"], state["obs"]
+        self.autoreset = state["autoreset"].copy()
+        self.visits[...] = state["visits"]
+        self.loss_sum.copy_(state["loss_sum"])
+        self.loss_count = state["loss_count"]
+        self.train_reward[:] = state["train_reward"]
+        self.rows = list(state["rows"])
+        self.last_checkpoint = state["last_checkpoint"]
+
+    def close(self) -> None:
+        """Release the environments."""
+        self.env.close()
+        if self._evaluator is not None:
+            self._evaluator.close()
+
+
+def _postfix(rows: list[dict[str, Any]], num_agents: int, cfg: TrainConfig) -> dict[str, str]:
+    """Progress-bar summary of the latest evaluation: aggregate steps/s and mean metric over seeds."""
+    out = {"sps": f"{rows[0]['steps_per_s'] * num_agents:.0f}"}
+    success = [r["success"] for r in rows]
+    if not any(math.isnan(s) for s in success):
+        out["success"] = f"{np.mean(success):.2f}"
+    else:
+        out["return"] = f"{np.mean([r['return'] for r in rows]):.1f}"
+    return out
+
+
+@contextmanager
+def _progress(cfg: TrainConfig, initial: int):
+    """A tqdm bar over environment steps per seed (a silent stand-in when disabled)."""
+    from tqdm import tqdm
+
+    bar = tqdm(total=cfg.total_steps, initial=initial, unit="step", disable=not cfg.run.progress,
+               desc=f"{cfg.env.task} x{cfg.run.seeds}", dynamic_ncols=True)
+    try:
+        yield bar
+    finally:
+        bar.close()
+
+
+@contextmanager
+def _stop_on_signal():
+    """An event set by SIGINT/SIGTERM while inside the block (main thread only; elsewhere never set)."""
+    stop = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+    handler = lambda signum, frame: stop.set()  # noqa: E731
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield stop
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+class _Logger:
+    """Writes metrics.csv, the visitation counts and (optionally) TensorBoard scalars at each evaluation."""
+
+    def __init__(self, run_dir: RunDir, cfg: TrainConfig) -> None:
+        self.run_dir = run_dir
+        self.writer = None
+        if cfg.run.tensorboard:
+            from torch.utils.tensorboard import SummaryWriter  # lazy: TensorBoard is optional
+
+            self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"))
+
+    def log(self, trainer: Trainer, rows: list[dict[str, Any]]) -> None:
+        """Persist the latest evaluation."""
+        self.run_dir.write_metrics(trainer.rows)
+        self.run_dir.save_visits(trainer.visits, trainer.step)
+        if self.writer is None:
+            return
+        for key in ("success", "return", "loss", "epsilon", "train_reward", "steps_per_s"):
+            values = [r[key] for r in rows]
+            if not any(math.isnan(v) for v in values):
+                self.writer.add_scalar(f"{key}/mean", float(np.mean(values)), trainer.step)
+                for r in rows:
+                    self.writer.add_scalar(f"{key}/seed_{r['seed']}", r[key], trainer.step)
+
+    def close(self) -> None:
+        """Flush TensorBoard."""
+        if self.writer is not None:
+            self.writer.close()
+
