@@ -17,8 +17,7 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 demo: setup
-	$(BIN)/ecorl demo --out results/demo
-	$(BIN)/python benchmarks/bench_gridtasks.py --quick
+	$(BIN)/ecorl run headline --budget quick --out results --report
 
 test: setup
 	$(BIN)/python -m pytest -q

@@ -1,0 +1,135 @@
+"""The experiments as data: budgets, conditions and configs follow SPEC and the paper."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from train.experiments import BUDGETS, EXPERIMENTS, SHAPING_SCHEDULE, TEST_HORIZON, get_experiment, job_config
+from train.sweep import plan
+
+REPO = Path(__file__).resolve().parents[2]
+
+SPEC_TABLE = {  # name: (paper seeds, {task: steps}) from SPEC's experiment table
+    "episodic-vs-reset-free": (10, {"salad": 1_000_000}),
+    "dynamism": (10, {"salad": 1_000_000, "hunting": 1_500_000, "scavenging": 1_250_000, "factory": 1_250_000,
+                      "foodcollector": 1_000_000}),
+    "dynamism-sweep": (10, {"salad": 1_000_000, "hunting": 1_500_000}),
+    "shaping": (10, dict.fromkeys(("salad", "hunting", "scavenging", "factory", "foodcollector"), 1_250_000)),
+    "rnd": (10, {"factory": 1_250_000}),
+    "walls": (3, {"walled-salad": 1_000_000}),
+    "measure": (25, dict.fromkeys(("factory", "salad", "hunting", "scavenging", "walled-salad"), 50_000)),
+}
+
+
+def test_every_spec_experiment_is_defined_with_the_papers_budget():
+    for name, (seeds, steps) in SPEC_TABLE.items():
+        exp = get_experiment(name)
+        paper = exp.budget("paper")
+        assert paper.seeds == seeds, name
+        assert {t: paper.steps_for(t) for t in exp.tasks} == steps, name
+        if not exp.is_measurement:
+            assert paper.eval_every == 5_000 and paper.eval_rollouts is None
+    assert "headline" in EXPERIMENTS
+
+
+def test_unknown_names_are_explained():
+    with pytest.raises(ValueError, match="choose one of"):
+        get_experiment("nope")
+    with pytest.raises(ValueError, match="choose one of"):
+        get_experiment("dynamism").budget("huge")
+    with pytest.raises(ValueError, match="its tasks are"):
+        get_experiment("rnd").select_tasks(["salad"])
+
+
+@pytest.mark.parametrize("budget", BUDGETS)
+def test_every_condition_builds_a_valid_config(budget, tmp_path):
+    for exp in EXPERIMENTS.values():
+        jobs = plan(exp, budget, tmp_path)
+        assert len({j.run_dir for j in jobs}) == len(jobs)
+        for job in jobs:
+            assert Path(job.run_dir) == tmp_path.resolve() / exp.name / job.task / job.condition
+            if job.is_measurement:
+                continue
+            cfg = job_config(exp, job.task, next(c for c in exp.conditions[job.task] if c.name == job.condition),
+                             exp.budget(budget))
+            assert cfg.to_dict() == job.config
+            assert cfg.eval.eval_horizon == TEST_HORIZON[job.task] or budget == "smoke"
+            assert cfg.run.threads == 1 and not cfg.run.progress
+            assert cfg.dqn.eps_decay_steps == 90_000  # the paper's clock at every budget
+
+
+def test_smoke_budget_is_small():
+    for exp in EXPERIMENTS.values():
+        b = exp.budget("smoke")
+        assert b.seeds <= 3 and all(b.steps_for(t) <= 2_000 for t in exp.tasks)
+
+
+def test_dynamism_conditions_are_static_dynamic_by_episodic_reset_free():
+    exp = get_experiment("dynamism")
+    for task, conds in exp.conditions.items():
+        assert [c.name for c in conds] == ["static-episodic", "static-reset-free", "dynamic-episodic",
+                                           "dynamic-reset-free"]
+        knobs = [(c.overrides["dynamism"] > 0, c.overrides["reset_free"]) for c in conds]
+        assert knobs == [(False, False), (False, True), (True, False), (True, True)], task
+    salad = {c.name: c.overrides for c in exp.conditions["salad"]}
+    assert salad["dynamic-reset-free"]["dynamism"] == 0.1
+    hunting = {c.name: c.overrides for c in exp.conditions["hunting"]}
+    assert hunting["dynamic-episodic"]["dynamism"] == 0.2
+    assert [c.overrides for c in get_experiment("headline").conditions["salad"]] == list(salad.values())
+
+
+def test_shaping_conditions_follow_the_paper():
+    exp = get_experiment("shaping")
+    assert SHAPING_SCHEDULE["salad"] == "linear:1:0:280000"  # the original (40000, 20000) window on 8x8
+    for task, conds in exp.conditions.items():
+        names = [c.name for c in conds]
+        expected = (["env-shaping-sparse", "no-shaping"] if task == "foodcollector" else
+                    ["env-shaping-sparse", "env-shaping-subgoal", "distance-reward", "one-time-reward", "no-shaping"])
+        assert names == expected, task
+        for c in conds:
+            assert c.overrides["reset_free"] is True
+            assert ("shaping" in c.overrides) == c.name.startswith("env-shaping")
+    hunting = exp.conditions["hunting"][0]
+    cfg = job_config(exp, "hunting", hunting, exp.budget("paper"))
+    assert cfg.env.env_kwargs == {"deer_kind": "hard", "deer_speed": 0.2}
+    assert cfg.env.shaping == SHAPING_SCHEDULE["hunting"]
+    assert {c.overrides["dynamism"] for c in exp.conditions["salad"]} == {0.05}
+
+
+def test_walls_cover_both_settings_and_rnd_turns_rnd_on():
+    walls = get_experiment("walls").conditions["walled-salad"]
+    assert sum(c.overrides["reset_free"] for c in walls) == 5 and len(walls) == 10
+    rnd = {c.name: c.overrides for c in get_experiment("rnd").conditions["factory"]}
+    assert rnd["rnd"].get("rnd") is True and not rnd["static"].get("rnd")
+    assert all(o["reset_free"] for o in rnd.values())
+
+
+def test_run_overrides_change_seeds_and_steps(tmp_path):
+    jobs = plan(get_experiment("rnd"), "smoke", tmp_path, seeds=3, steps=1500)
+    assert {j.config["run"]["seeds"] for j in jobs} == {3}
+    assert {j.config["run"]["steps"] for j in jobs} == {1500}
+
+
+def test_paper_numbers_name_real_experiments_and_conditions():
+    files = sorted((REPO / "assets" / "paper").glob("*.json"))
+    assert len(files) >= 6
+    seen_exact = seen_approx = 0
+    for path in files:
+        data = json.loads(path.read_text())
+        assert data["figure"] and data["source"]
+        for exp_name in data["experiments"]:
+            exp = get_experiment(exp_name)
+            for v in data["values"]:
+                assert isinstance(v["approximate"], bool) and v["where"]
+                seen_exact += not v["approximate"]
+                seen_approx += v["approximate"]
+                assert v["task"] in exp.conditions, (path.name, v)
+                names = [c.name for c in exp.conditions[v["task"]]]
+                if "measure" in v:
+                    assert v["measure"] in names
+                else:
+                    assert v["condition"] in names and 0.0 <= v["value"] <= 1.0
+    assert seen_exact >= 8 and seen_approx >= 4  # Table 1 exact; text-quoted figure values approximate

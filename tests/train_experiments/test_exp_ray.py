@@ -1,0 +1,76 @@
+"""The Ray executor against a local Ray instance started (and stopped) by the test."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("ray")  # an optional extra: pip install 'ecorl[ray]'
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def ray_head(tmp_path):
+    """``ray start --head --block`` in its own process group; the whole group is stopped afterwards."""
+    port = _free_port()
+    temp = Path("/tmp") / f"ecorl-ray-{os.getpid()}"  # Ray's socket paths must stay short
+    log = open(tmp_path / "ray.log", "w")
+    proc = subprocess.Popen(["ray", "start", "--head", "--block", "--port", str(port), "--num-cpus", "2",
+                             "--include-dashboard", "false", "--disable-usage-stats", "--temp-dir", str(temp)],
+                            start_new_session=True, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        yield f"127.0.0.1:{port}"
+    finally:
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(15)
+        except subprocess.TimeoutExpired:
+            pass
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)  # whatever of this group is still alive
+        except ProcessLookupError:
+            pass
+        proc.wait()
+        log.close()
+        subprocess.run(["rm", "-rf", str(temp)], check=False)
+
+
+def _layout(root: Path) -> set[tuple[str, ...]]:
+    """Relative paths of the result files that do not depend on timing."""
+    return {p.relative_to(root).parts for p in root.rglob("*") if p.is_file()}
+
+
+def _drop_timing(rows: list[str]) -> list[str]:
+    """metrics.csv lines without their last column (steps_per_s, a timing)."""
+    return [r.rsplit(",", 1)[0] for r in rows]
+
+
+def test_ray_executor_gives_the_local_layout(ray_head, tmp_path, cli):
+    args = ("run", "rnd", "--budget", "smoke", "--no-progress")
+    deadline = time.monotonic() + 60
+    while True:  # the head needs a few seconds before it accepts drivers
+        proc = cli(*args, "--executor", "ray", "--address", ray_head, "--out", str(tmp_path / "ray"), check=False)
+        if proc.returncode == 0 or time.monotonic() > deadline:
+            break
+        time.sleep(2)
+    assert proc.returncode == 0, proc.stderr
+    assert "4 done" in proc.stderr
+    cli(*args, "--out", str(tmp_path / "local"))
+    assert _layout(tmp_path / "ray") == _layout(tmp_path / "local")
+    again = cli(*args, "--executor", "ray", "--address", ray_head, "--out", str(tmp_path / "ray"))
+    assert "4 skipped" in again.stderr
+    for cond in ("static", "rnd", "dynamic", "env-shaping"):
+        ray_rows = (tmp_path / "ray" / "rnd" / "factory" / cond / "metrics.csv").read_text().splitlines()
+        local_rows = (tmp_path / "local" / "rnd" / "factory" / cond / "metrics.csv").read_text().splitlines()
+        assert _drop_timing(ray_rows) == _drop_timing(local_rows)

@@ -1,0 +1,90 @@
+"""Report pieces on synthetic run directories: statistics, paper values, figures, markdown."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from train.experiments import get_experiment
+from train.report import bootstrap_ci, format_paper, load_paper, make_report, paper_value, read_metrics
+from train.rundir import METRIC_COLUMNS
+from train.sweep import DONE_FILE, EXPERIMENT_FILE
+
+
+def test_bootstrap_ci_brackets_the_mean():
+    values = np.array([[0.0, 0.2, 0.4, 0.6], [1.0, 1.0, 1.0, 1.0]])
+    mean, low, high = bootstrap_ci(values)
+    np.testing.assert_allclose(mean, [0.3, 1.0])
+    assert low[0] < 0.3 < high[0] and 0.0 <= low[0] and high[0] <= 0.6
+    assert low[1] == high[1] == 1.0
+    m1, l1, h1 = bootstrap_ci(np.array([[0.5]]))
+    assert m1[0] == l1[0] == h1[0] == 0.5
+    again = bootstrap_ci(values)
+    np.testing.assert_array_equal(again[1], low)  # seeded: the same interval every time
+
+
+def test_paper_values_and_their_marks():
+    paper = load_paper()
+    dyn = paper["dynamism"]
+    v = paper_value(dyn, "salad", "dynamic-reset-free")
+    assert v["value"] == pytest.approx(0.70) and v["approximate"]
+    assert format_paper(v) == "≈ 70% (Fig. 4)"
+    assert format_paper(None) == "—"
+    assert format_paper({"value": 0.5, "approximate": False, "figure": "T"}) == "= 50% (T)"
+    assert paper_value(paper["headline"], "salad", "static-episodic")["value"] == pytest.approx(0.12)
+    table = [x for x in paper["measure"]["values"] if x["measure"] == "entropy"]
+    assert [x["mean"] for x in table] == [6.2, 7.6, 7.9, 8.4, 8.6] and not any(x["approximate"] for x in table)
+    assert any("RND" in c["text"] for c in paper["rnd"]["claims"])
+    assert not any("RND" in c["text"] for c in paper["dynamism-sweep"]["claims"])
+
+
+def _fake_run(run_dir, seeds, steps, success, grid=(8, 8)):
+    run_dir.mkdir(parents=True)
+    with open(run_dir / "metrics.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=METRIC_COLUMNS)
+        writer.writeheader()
+        for i, step in enumerate(steps):
+            for k in range(seeds):
+                writer.writerow({"step": step, "seed": k, "epsilon": 0.1, "loss": 1.0,
+                                 "success": success(i, k), "return": 0.0, "train_reward": 0.0, "steps_per_s": 1.0})
+    (run_dir / "visits").mkdir()
+    for i, step in enumerate(steps):
+        np.save(run_dir / "visits" / f"{step:09d}.npy", np.full((seeds, *grid), i + 1, dtype=np.int64))
+    (run_dir / DONE_FILE).write_text("{}")
+
+
+def test_report_on_synthetic_runs(tmp_path):
+    exp = get_experiment("episodic-vs-reset-free")
+    root = tmp_path / "results"
+    info = {**exp.describe(), "budget": "quick", "tasks_run": ["salad"]}
+    (root / exp.name).mkdir(parents=True)
+    (root / exp.name / EXPERIMENT_FILE).write_text(json.dumps(info))
+    steps = list(range(5_000, 55_000, 5_000))
+    _fake_run(root / exp.name / "salad" / "static-episodic", 3, steps, lambda i, k: 0.1 * k)
+    _fake_run(root / exp.name / "salad" / "static-reset-free", 3, steps[:4], lambda i, k: 0.0)
+    (root / exp.name / "salad" / "static-reset-free" / DONE_FILE).unlink()  # still running
+    paths = make_report(root, videos=False)
+    names = sorted(p.name for p in paths)
+    assert names == ["episodic-vs-reset-free_curves.png", "episodic-vs-reset-free_salad_heatmaps.png",
+                     "index.html", "report.md"]
+    md = (root / "report.md").read_text()
+    assert "| salad | static, episodic | 10.0% [" in md and "| 3 | 50000 | ≈ 12% (Fig. 2) |" in md
+    assert "| salad | static, non-episodic | 0.0% [0.0, 0.0] | 3 | 20000 | ≈ 0% (Fig. 2) |" in md
+    assert "1 run(s) not finished yet" in md
+    steps_read, values = read_metrics(root / exp.name / "salad" / "static-episodic" / "metrics.csv", "success")
+    assert steps_read.tolist() == steps and values.shape == (10, 3)
+    assert "<video" not in (root / "index.html").read_text()
+
+
+def test_loose_videos_in_the_results_directory_are_shown(tmp_path):
+    from ecology import write_video
+
+    test_report_on_synthetic_runs(tmp_path)
+    root = tmp_path / "results"
+    write_video([np.zeros((32, 32, 3), np.uint8)] * 4, root / "demo.mp4", fps=4)
+    make_report(root, videos=False)
+    page = (root / "index.html").read_text()
+    assert "<h2>Videos</h2>" in page and "demo.mp4" in page

@@ -1,0 +1,419 @@
+"""Running an experiment: plan its jobs, run them in local processes or on Ray, resume, skip what is done.
+
+Layout of a results directory::
+
+    OUT/<experiment>/experiment.json          what was run (conditions, budget), read by the report
+    OUT/<experiment>/<task>/<condition>/      one trainer run directory (train.rundir), all seeds
+        done.json                             written atomically when the run has reached its budget
+    OUT/measure/<task>/<measurement>/         table.csv, table.md, done.json (Table 1, no training)
+
+A job is one condition of one task with all its seeds, trained in one process (`execute`). Re-running the
+same command skips jobs whose ``done.json`` covers the requested steps, resumes jobs that left a checkpoint,
+and starts the others afresh, so an interrupted sweep (even by SIGKILL) finishes with no run lost or
+repeated: the trainer's checkpoints are atomic and a resumed run continues exactly where the checkpoint
+stood.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import sys
+import time
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from train.config import TrainConfig
+from train.experiments import Experiment, job_config
+
+DONE_FILE = "done.json"
+"""Marker of a finished run (atomically written, with its step budget)."""
+EXPERIMENT_FILE = "experiment.json"
+"""Description of an experiment directory, written by `run_experiment`."""
+TRAINER_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "checkpoint.pkl.tmp", "config.json.tmp",
+                 "metrics.csv.tmp", "visits.npy.tmp", DONE_FILE + ".tmp")
+"""What a run that never reached its first checkpoint may have left; cleared before it starts again."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """One condition of one task: a trainer run (or a Table 1 measurement) in its own directory."""
+
+    experiment: str
+    task: str
+    condition: str
+    run_dir: str
+    config: dict[str, Any]
+    """`TrainConfig.to_dict()`, or for a measurement {'measure', 'task', 'seeds', 'steps'}."""
+    cost: float
+    """Relative cost (seed-steps), to start the longest jobs first."""
+
+    @property
+    def name(self) -> str:
+        """experiment/task/condition."""
+        return f"{self.experiment}/{self.task}/{self.condition}"
+
+    @property
+    def is_measurement(self) -> bool:
+        """True for a Table 1 measurement job."""
+        return "measure" in self.config
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """What happened to a job."""
+
+    job: str
+    status: str
+    """'done' (ran to its budget now), 'skipped' (already done), 'interrupted' or 'failed'."""
+    seconds: float = 0.0
+    error: str = ""
+
+
+# ---- planning ------------------------------------------------------------------------------------------
+
+
+def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Sequence[str] | None = None,
+         seeds: int | None = None, steps: int | None = None) -> list[Job]:
+    """The jobs of ``experiment`` at a budget (optionally a task subset, or other seeds/steps)."""
+    budget = experiment.budget(budget_name)
+    if seeds is not None or steps is not None:
+        budget = replace(budget, seeds=seeds or budget.seeds, steps=steps or budget.steps)
+    root = Path(out).resolve() / experiment.name
+    jobs = []
+    for task in experiment.select_tasks(tasks):
+        for cond in experiment.conditions[task]:
+            run_dir = str(root / task / cond.name)
+            n_steps = budget.steps_for(task)
+            if cond.measure:
+                config = {"measure": cond.measure, "task": task, "seeds": budget.seeds, "steps": n_steps}
+                jobs.append(Job(experiment.name, task, cond.name, run_dir, config, budget.seeds * n_steps / 20))
+            else:
+                cfg = job_config(experiment, task, cond, budget)
+                jobs.append(Job(experiment.name, task, cond.name, run_dir, cfg.to_dict(),
+                                cfg.run.seeds * cfg.total_steps * (10 if task == "foodcollector" else 1)))
+    return jobs
+
+
+def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequence[Job], out: str | Path) -> Path:
+    """Record what this experiment directory holds (merged with earlier runs of other task subsets)."""
+    path = Path(out).resolve() / experiment.name / EXPERIMENT_FILE
+    info = experiment.describe()
+    old = json.loads(path.read_text()) if path.exists() else {}
+    info["budget"] = budget_name
+    info["tasks_run"] = sorted(set(old.get("tasks_run", [])) | {j.task for j in jobs},
+                               key=lambda t: list(experiment.tasks).index(t))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _atomic_text(path, json.dumps(info, indent=2) + "\n")
+    return path
+
+
+# ---- one job -------------------------------------------------------------------------------------------
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (temporary file, fsync, rename)."""
+    from train.rundir import atomic_write
+
+    atomic_write(path, text.encode())
+
+
+def read_done(run_dir: str | Path) -> dict[str, Any] | None:
+    """The done marker of a run directory, or None."""
+    path = Path(run_dir) / DONE_FILE
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def job_is_done(job: Job) -> bool:
+    """True when the job's directory holds a done marker that covers the job's budget and settings."""
+    done = read_done(job.run_dir)
+    if done is None:
+        return False
+    if job.is_measurement:
+        return done.get("config") == job.config
+    cfg = TrainConfig.from_dict(job.config)
+    if done.get("total_steps", -1) < cfg.total_steps:
+        return False  # a longer budget was asked for: the run is resumed from its checkpoint
+    saved = Path(job.run_dir) / "config.json"
+    if saved.exists():
+        from train.rundir import check_same_run
+
+        check_same_run(TrainConfig.from_dict(json.loads(saved.read_text())), cfg, saved)
+    return True
+
+
+def _clear_unstarted(run_dir: Path) -> None:
+    """Remove what a run killed before its first checkpoint left behind (refuse to touch anything else)."""
+    if not run_dir.exists():
+        return
+    unknown = [p.name for p in run_dir.iterdir() if p.name not in TRAINER_FILES and p.name != DONE_FILE]
+    if unknown:
+        raise RuntimeError(f"{run_dir} holds no checkpoint but other files ({', '.join(sorted(unknown))}); "
+                           f"move them away or choose another --out")
+    for p in run_dir.iterdir():
+        shutil.rmtree(p) if p.is_dir() else p.unlink()
+
+
+def execute(job: Job) -> JobResult:
+    """Run one job to its budget: skip it if done, resume it from its checkpoint, or start it afresh.
+
+    Safe to call in any process (local worker or Ray task). Exceptions are returned, not raised.
+    """
+    began = time.perf_counter()
+    try:
+        if job_is_done(job):
+            return JobResult(job.name, "skipped")
+        finished = _run_measurement(job) if job.is_measurement else _run_training(job)
+        return JobResult(job.name, "done" if finished else "interrupted", time.perf_counter() - began)
+    except Exception:  # reported to the caller, which carries on with the other jobs
+        return JobResult(job.name, "failed", time.perf_counter() - began, traceback.format_exc())
+
+
+def _run_training(job: Job) -> bool:
+    """Train (or resume) the job's run; write the done marker when it reached its budget."""
+    from train.trainer import Trainer
+
+    run_dir = Path(job.run_dir)
+    cfg = TrainConfig.from_dict(job.config)
+    resume = (run_dir / "checkpoint.pkl").exists()
+    if not resume:
+        _clear_unstarted(run_dir)
+    began = time.perf_counter()
+    trainer = Trainer(cfg, run_dir, resume=resume)
+    try:
+        trainer.run()
+    finally:
+        trainer.close()
+    if trainer.epoch < trainer.cfg.num_epochs:
+        return False  # stopped by a signal, with a checkpoint
+    marker = {"total_steps": trainer.cfg.total_steps, "seeds": trainer.cfg.run.seeds,
+              "seconds": round(time.perf_counter() - began, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    _atomic_text(run_dir / DONE_FILE, json.dumps(marker, indent=2) + "\n")
+    return True
+
+
+def _run_measurement(job: Job) -> bool:
+    """Run a Table 1 measurement and write table.csv, table.md and the done marker."""
+    cfg = job.config
+    run_dir = Path(job.run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    began = time.perf_counter()
+    rows = measure_rows(cfg["measure"], cfg["task"], cfg["seeds"], cfg["steps"])
+    write_measure_table(rows, run_dir / "table", title=f"{cfg['measure']} ({cfg['task']}, {cfg['seeds']} seeds, "
+                        f"{cfg['steps']} steps)")
+    marker = {"config": cfg, "seconds": round(time.perf_counter() - began, 1),
+              "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    _atomic_text(run_dir / DONE_FILE, json.dumps(marker, indent=2) + "\n")
+    return True
+
+
+# ---- Table 1 measurements -----------------------------------------------------------------------------
+
+MEASUREMENTS = ("hitting-time", "entropy")
+"""The two measurements of Table 1."""
+MEASURE_COLUMNS = ("condition", "mean", "std", "seeds", "censored")
+
+
+def measure_rows(kind: str, task: str, seeds: int, steps: int, seed: int = 0) -> list[dict[str, Any]]:
+    """One Table 1 measurement of a grid task (`train.measure`): a row per condition, mean and std over seeds."""
+    from train import measure
+
+    if kind == "hitting-time":
+        summaries = measure.hitting_time_table(task, seeds=seeds, max_steps=steps, seed=seed)
+    elif kind == "entropy":
+        summaries = measure.entropy_table(task, seeds=seeds, steps=steps, seed=seed)
+    else:
+        raise ValueError(f"unknown measurement {kind!r}; choose one of {', '.join(MEASUREMENTS)}")
+    return [{"condition": s.condition, "mean": s.mean, "std": s.std, "seeds": s.seeds, "censored": s.censored}
+            for s in summaries]
+
+
+def write_measure_table(rows: Sequence[dict[str, Any]], stem: Path, title: str) -> tuple[Path, Path]:
+    """Write ``stem``.csv and ``stem``.md (mean ± std per condition); return both paths."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=MEASURE_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    csv_path, md_path = stem.with_suffix(".csv"), stem.with_suffix(".md")
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    _atomic_text(csv_path, buf.getvalue())
+    lines = [f"### {title}", "", "| condition | mean ± std | seeds | censored |", "|---|---|---|---|"]
+    lines += [f"| {r['condition']} | {r['mean']:.1f} ± {r['std']:.1f} | {r['seeds']} | {r['censored']} |"
+              for r in rows]
+    _atomic_text(md_path, "\n".join(lines) + "\n")
+    return csv_path, md_path
+
+
+# ---- executors -----------------------------------------------------------------------------------------
+
+
+_STOP = None
+"""In a local worker process: the sweep's stop event (set when the user interrupts the sweep)."""
+
+
+def _init_worker(stop) -> None:
+    """Worker initializer: Ctrl-C reaches the trainer's own handler (a clean stop), not the pool loop."""
+    global _STOP
+    _STOP = stop
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _execute_unless_stopped(job: Job) -> JobResult:
+    """`execute`, unless the sweep was interrupted before this job started."""
+    if _STOP is not None and _STOP.is_set():
+        return JobResult(job.name, "interrupted")
+    return execute(job)
+
+
+def run_local(jobs: Sequence[Job], workers: int, on_result: Callable[[JobResult], None]) -> list[JobResult]:
+    """Run ``jobs`` in up to ``workers`` local processes (one job per process at a time)."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    results: list[JobResult] = []
+    if not jobs:
+        return results
+    ctx = multiprocessing.get_context("spawn")  # no forked torch/OpenMP state in the workers
+    stop = ctx.Event()
+    pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(jobs))), mp_context=ctx,
+                               initializer=_init_worker, initargs=(stop,))
+    pending = {pool.submit(_execute_unless_stopped, job): job for job in jobs}
+    try:
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                job = pending.pop(fut)
+                try:
+                    result = fut.result()
+                except Exception as err:  # a worker died (e.g. killed): report it, keep going
+                    result = JobResult(job.name, "failed", error=f"worker process failed: {err!r}")
+                results.append(result)
+                on_result(result)
+    except KeyboardInterrupt:
+        stop.set()  # queued jobs do not start; running trainers stop at their epoch end (they got SIGINT too)
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+    return results
+
+
+def _import_ray():
+    """Import Ray, or explain how to get it."""
+    try:
+        import ray
+    except ImportError:
+        raise RuntimeError("the Ray executor needs Ray: pip install 'ecorl[ray]' (or pip install 'ray>=2.9'), "
+                           "or use --executor local") from None
+    return ray
+
+
+def run_ray(jobs: Sequence[Job], address: str | None, on_result: Callable[[JobResult], None]) -> list[JobResult]:
+    """Run ``jobs`` as Ray tasks (one CPU each) on the cluster at ``address`` (None: start a local one).
+
+    Every node must see the results directory at the same path (a shared file system), since each task
+    writes its run directory itself.
+    """
+    ray = _import_ray()
+    if not ray.is_initialized():
+        ray.init(address=address, log_to_driver=False, include_dashboard=False)
+    remote = ray.remote(num_cpus=1, max_retries=0)(execute)
+    pending = {remote.remote(job): job for job in jobs}
+    results: list[JobResult] = []
+    try:
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            job = pending.pop(ready[0])
+            try:
+                result = ray.get(ready[0])
+            except Exception as err:  # the task's worker died
+                result = JobResult(job.name, "failed", error=f"Ray task failed: {err!r}")
+            results.append(result)
+            on_result(result)
+    except KeyboardInterrupt:
+        for ref in pending:
+            ray.cancel(ref)
+        raise
+    return results
+
+
+# ---- the whole sweep -----------------------------------------------------------------------------------
+
+
+def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None = None,
+             address: str | None = None, progress: bool = True) -> list[JobResult]:
+    """Run every job not yet done (longest first), with a progress bar over conditions."""
+    from tqdm import tqdm
+
+    done_before = [j for j in jobs if _safe_is_done(j)]
+    todo = sorted((j for j in jobs if j not in done_before), key=lambda j: -j.cost)
+    bar = tqdm(total=len(jobs), initial=len(done_before), unit="run", desc="conditions", disable=not progress,
+               dynamic_ncols=True)
+    results = [JobResult(j.name, "skipped") for j in done_before]
+
+    def on_result(result: JobResult) -> None:
+        bar.update(1)
+        if result.status == "failed":
+            bar.write(f"FAILED {result.job}:\n{result.error}")
+        elif result.status == "done":
+            bar.write(f"finished {result.job} in {result.seconds:.0f} s")
+
+    if executor not in ("local", "ray"):
+        bar.close()
+        raise ValueError(f"unknown executor {executor!r}; choose local or ray")
+    try:
+        if not todo:
+            pass
+        elif executor == "local":
+            results += run_local(todo, workers or os.cpu_count() or 1, on_result)
+        else:
+            results += run_ray(todo, address, on_result)
+    finally:
+        bar.close()
+    return results
+
+
+def _safe_is_done(job: Job) -> bool:
+    """`job_is_done`, letting a settings mismatch surface when the job runs (as a failure with its message)."""
+    try:
+        return job_is_done(job)
+    except Exception:
+        return False
+
+
+def summarize(results: Iterable[JobResult]) -> dict[str, int]:
+    """Count results by status."""
+    counts: dict[str, int] = {}
+    for r in results:
+        counts[r.status] = counts.get(r.status, 0) + 1
+    return counts
+
+
+def print_plan(jobs: Sequence[Job], file=None) -> None:
+    """One line per job: its directory, seeds, steps and whether it is done."""
+    file = file or sys.stdout
+    for job in jobs:
+        cfg = job.config
+        if job.is_measurement:
+            what = f"{cfg['measure']}: {cfg['seeds']} seeds x {cfg['steps']} steps"
+        else:
+            c = TrainConfig.from_dict(cfg)
+            what = (f"{c.run.seeds} seeds x {c.total_steps} steps, eval every {c.eval.eval_every}, "
+                    f"p={c.env.dynamism:g}, shaping={c.env.shaping}, "
+                    f"{'reset-free' if c.env.reset_free else 'episodic'}, "
+                    f"reward={c.env.reward}{', rnd' if c.rnd.rnd else ''}")
+        state = "done" if _safe_is_done(job) else ("resume" if (Path(job.run_dir) / "checkpoint.pkl").exists()
+                                                    else "new")
+        print(f"[{state:>6s}] {job.name}: {what}", file=file)
+
+
+def job_to_dict(job: Job) -> dict[str, Any]:
+    """A JSON-friendly job."""
+    return asdict(job)
