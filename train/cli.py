@@ -162,7 +162,14 @@ def _demo_command(subparsers) -> None:
     add_demo_command(subparsers)
 
 
-COMMANDS = (add_train_command, _demo_command)
+def _experiment_commands(subparsers) -> None:
+    from train.commands import SUBCOMMANDS
+
+    for add in SUBCOMMANDS:
+        add(subparsers)
+
+
+COMMANDS = (add_train_command, _experiment_commands, _demo_command)
 """Functions that each add one subcommand."""
 
 
