@@ -1,4 +1,4 @@
-"""The ``ecorl`` subcommands ``run``, ``report``, ``measure`` and ``video``.
+"""The ``ecorl`` subcommands ``run``, ``report``, ``measure``, ``video`` and ``export``.
 
 Each ``add_<name>_parser(subparsers)`` adds one subcommand whose handler is ``handler(args, parser) -> int``
 (the convention of `train.cli`). ``python -m train.commands ...`` runs them without the rest of the CLI.
@@ -22,6 +22,12 @@ def _positive(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text}")
     return value
+
+
+def _error(command: str, err: BaseException) -> int:
+    """Report a user error of ``ecorl COMMAND`` on stderr; the exit status 2 (argparse's, for bad input)."""
+    print(f"ecorl {command}: error: {err}", file=sys.stderr)
+    return 2
 
 
 # ---- ecorl run -----------------------------------------------------------------------------------------
@@ -99,8 +105,7 @@ def run_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> in
               f"({where})", file=sys.stderr)
         return 130
     except RuntimeError as err:
-        print(f"ecorl run: error: {err}", file=sys.stderr)
-        return 2
+        return _error("run", err)
     counts = summarize(results)
     print("runs: " + ", ".join(f"{n} {status}" for status, n in sorted(counts.items())), file=sys.stderr)
     if counts.get("failed") or counts.get("interrupted"):
@@ -143,8 +148,7 @@ def report_command(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
     try:
         paths = make_report(args.dir, args.videos)
     except FileNotFoundError as err:
-        print(f"ecorl report: error: {err}", file=sys.stderr)
-        return 2
+        return _error("report", err)
     for path in paths:
         print(path)
     return 0
@@ -196,20 +200,22 @@ def measure_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -
 
 
 def add_video_parser(subparsers) -> argparse.ArgumentParser:
-    """``ecorl video TASK [--policy RUN_OR_CHECKPOINT | --random] [--out FILE.mp4] ...``."""
+    """``ecorl video TASK [--policy RUN_DIR_OR_FILE | --random] [--out FILE.mp4] ...``."""
     from train.tasks import TASKS
 
     parser = subparsers.add_parser(
         "video", help="an MP4 of a rollout (trained or random policy)",
-        description="Render a rollout of a trained policy (one seed of a run, epsilon-greedy) or of a uniform "
-                    "random policy in the task's test MDP (or its training env) to an MP4.")
+        description="Render a rollout to an MP4, headless, in the task's test MDP (or its training env). "
+                    "The acting policy is, in order: --policy (one seed of a run, or a policy file), --random, "
+                    "or else the trained policy shipped for the task in assets/policies/ (random if none).")
     parser.add_argument("task", choices=tuple(TASKS), metavar="TASK", help=f"one of: {', '.join(TASKS)}")
     source = parser.add_mutually_exclusive_group()
-    source.add_argument("--policy", type=Path, metavar="RUN_DIR_OR_CHECKPOINT",
-                        help="run directory (or its checkpoint.pkl) whose final network acts")
-    source.add_argument("--random", action="store_true", help="a uniform random policy (the default)")
+    source.add_argument("--policy", type=Path, metavar="RUN_DIR_OR_FILE",
+                        help="run directory, its checkpoint.pkl, or a policy file (.npz) whose network acts")
+    source.add_argument("--random", action="store_true", help="a uniform random policy")
     parser.add_argument("--out", type=Path, default=None,
-                        help="output MP4 (default: RUN_DIR/video.mp4 with --policy, else TASK-random.mp4)")
+                        help="output MP4 (default: RUN_DIR/video.mp4 for a run, else TASK-trained.mp4 or "
+                             "TASK-random.mp4)")
     parser.add_argument("--steps", type=_positive, default=None,
                         help="environment steps to film (default: one test-MDP episode, the test horizon)")
     parser.add_argument("--seed", type=int, default=0, help="layout and exploration seed (default: 0)")
@@ -221,29 +227,76 @@ def add_video_parser(subparsers) -> argparse.ArgumentParser:
     return parser
 
 
+def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
+    """The policy to film (None: random) and the default output path, from the parsed arguments."""
+    from train.policy import resolve_run_dir, shipped_policy
+
+    if args.random:
+        return None, Path(f"{args.task}-random.mp4")
+    if args.policy is None:
+        shipped = shipped_policy(args.task)
+        if shipped is None:
+            print(f"ecorl video: no trained policy is shipped for {args.task}; filming a random policy",
+                  file=sys.stderr)
+        return shipped, Path(f"{args.task}-{'trained' if shipped else 'random'}.mp4")
+    if args.policy.suffix == ".npz":
+        return args.policy, Path(f"{args.task}-trained.mp4")
+    return args.policy, resolve_run_dir(args.policy) / "video.mp4"
+
+
 def video_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Render the video and print its path."""
-    from train.video import record_video, resolve_run_dir
+    from train.video import record_video
 
     try:
-        out = args.out
-        if out is None:
-            out = (resolve_run_dir(args.policy) / "video.mp4") if args.policy else Path(f"{args.task}-random.mp4")
-        path = record_video(args.task, out, policy_path=args.policy, steps=args.steps, seed=args.seed,
-                            seed_index=args.agent, train_env=args.train_env, epsilon=args.epsilon)
+        policy, default_out = _video_source(args)
+        path = record_video(args.task, args.out or default_out, policy_path=policy, steps=args.steps,
+                            seed=args.seed, seed_index=args.agent, train_env=args.train_env, epsilon=args.epsilon)
     except (ValueError, FileNotFoundError) as err:
-        print(f"ecorl video: error: {err}", file=sys.stderr)
-        return 2
+        return _error("video", err)
     print(path)
     return 0
 
 
-SUBCOMMANDS = (add_run_parser, add_report_parser, add_measure_parser, add_video_parser)
+# ---- ecorl export --------------------------------------------------------------------------------------
+
+
+def add_export_parser(subparsers) -> argparse.ArgumentParser:
+    """``ecorl export RUN_DIR --out FILE.npz [--agent K]``."""
+    parser = subparsers.add_parser(
+        "export", help="save one seed's trained network as a small policy file",
+        description="Write one seed's Q-network of a run (default: the seed with the best validation success "
+                    "at the last evaluation) with the run's configuration to a policy file (.npz, a few hundred "
+                    "KB) that 'ecorl video --policy' reads.")
+    parser.add_argument("run", type=Path, metavar="RUN_DIR", help="run directory (or its checkpoint.pkl)")
+    parser.add_argument("--out", type=Path, required=True, help="policy file to write (.npz)")
+    parser.add_argument("--agent", type=int, default=None,
+                        help="seed index to export (default: the best at the last evaluation)")
+    parser.set_defaults(handler=export_command)
+    return parser
+
+
+def export_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    """Export the policy and print what was written."""
+    from train.policy import export_policy, load_policy_file
+
+    try:
+        path = export_policy(args.run, args.out, args.agent)
+    except (ValueError, FileNotFoundError) as err:
+        return _error("export", err)
+    meta = load_policy_file(path).meta
+    success = meta.get("validation_success")
+    shown = "n/a" if success is None else f"{100 * success:.0f} %"
+    print(f"{path}: agent {meta['agent']} at step {meta['step']}, validation success {shown}")
+    return 0
+
+
+SUBCOMMANDS = (add_run_parser, add_report_parser, add_measure_parser, add_video_parser, add_export_parser)
 """The subcommands of this module, in the order ``ecorl --help`` lists them."""
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """These four subcommands as a stand-alone program (``python -m train.commands``)."""
+    """These subcommands as a stand-alone program (``python -m train.commands``)."""
     parser = argparse.ArgumentParser(prog="ecorl", description="Ecological reinforcement learning: experiments.")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     subs = {add.__name__: add(subparsers) for add in SUBCOMMANDS}

@@ -33,8 +33,8 @@ Choices the paper leaves open, and where the values come from:
 * shaping base tasks: salad and walled salad grow ingredients at p = 0.05 (the original shaping scripts; with
   p = 0 nothing would spawn inside the window); hunting uses hard deer fleeing with probability 0.2 in
   training and test (SPEC); the others are static.
-* evaluation horizon: set explicitly to each task's test horizon (`TEST_HORIZON`), not left to the trainer's
-  default (which reads the horizon of the training env's config).
+* evaluation horizon: left to the trainer, which takes each task's test horizon from its test MDP
+  (``test_mdp_kwargs()``), whatever the training horizon.
 """
 
 from __future__ import annotations
@@ -55,10 +55,6 @@ GRID_TASKS = ("salad", "hunting", "scavenging", "factory", "walled-salad")
 
 PAPER_TASKS = ("salad", "hunting", "scavenging", "factory", "foodcollector")
 """The five panels of the paper's Fig. 4 and Fig. 5."""
-
-TEST_HORIZON = MappingProxyType({"salad": 100, "hunting": 200, "scavenging": 200, "factory": 200,
-                                 "walled-salad": 500, "foodcollector": 1000})
-"""Length of each validation rollout: the test horizon of every task (SPEC)."""
 
 DYNAMIC_P = MappingProxyType({"salad": 0.1, "hunting": 0.2, "scavenging": 0.5, "factory": 0.2,
                               "walled-salad": 0.05, "foodcollector": 0.5})
@@ -185,7 +181,6 @@ def job_config(experiment: Experiment, task: str, condition: Condition, budget: 
     flat: dict[str, Any] = {"task": task, **condition.overrides}
     flat.update(budget.overrides)
     flat.update(budget.task_overrides.get(task, {}))
-    flat.setdefault("eval_horizon", TEST_HORIZON[task])
     steps = budget.steps_for(task)
     flat.update(seeds=budget.seeds, steps=steps, eval_every=budget.eval_every, threads=1, progress=False)
     flat.setdefault("checkpoint_every", max(budget.eval_every, min(50_000, math.ceil(steps / 10))))

@@ -11,15 +11,6 @@ from train.dqn import DoubleDQN, FlatAdam, clip_grad_norm_per_agent, double_dqn_
 from train.network import QNetwork
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Tiny tensors: one thread avoids OpenMP overhead (and oversubscription on a busy machine)."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
-
-
 def test_target_uses_online_argmax_and_target_values():
     online = torch.tensor([[1.0, 5.0, 2.0]])  # online picks action 1
     target = torch.tensor([[10.0, 3.0, 7.0]])  # ... which the target values at 3 (its own max would be 10)

@@ -93,6 +93,6 @@ def test_policy_video_from_a_run(smoke_root, tmp_path, capsys):
     assert commands.main(["video", "salad", "--policy", str(run_dir), "--train-env", "--steps", "10",
                           "--out", str(tmp_path / "train.mp4")]) == 0
     assert commands.main(["video", "hunting", "--policy", str(run_dir), "--out", str(tmp_path / "x.mp4")]) == 2
-    assert "trained task 'salad'" in capsys.readouterr().err
+    assert "trained on 'salad'" in capsys.readouterr().err
     assert commands.main(["video", "salad", "--policy", str(run_dir), "--agent", "5"]) == 2
     assert commands.main(["video", "salad", "--policy", str(tmp_path)]) == 2

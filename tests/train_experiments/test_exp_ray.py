@@ -6,12 +6,14 @@ import os
 import signal
 import socket
 import subprocess
+import sys
 import time
 from pathlib import Path
 
 import pytest
 
-pytest.importorskip("ray")  # an optional extra: pip install 'ecorl[ray]'
+RAY = str(Path(sys.executable).with_name("ray"))
+"""The ``ray`` command of this interpreter's environment (a virtual environment need not be on PATH)."""
 
 
 def _free_port() -> int:
@@ -26,7 +28,7 @@ def ray_head(tmp_path):
     port = _free_port()
     temp = Path("/tmp") / f"ecorl-ray-{os.getpid()}"  # Ray's socket paths must stay short
     log = open(tmp_path / "ray.log", "w")
-    proc = subprocess.Popen(["ray", "start", "--head", "--block", "--port", str(port), "--num-cpus", "2",
+    proc = subprocess.Popen([RAY, "start", "--head", "--block", "--port", str(port), "--num-cpus", "2",
                              "--include-dashboard", "false", "--disable-usage-stats", "--temp-dir", str(temp)],
                             start_new_session=True, stdout=log, stderr=subprocess.STDOUT)
     try:

@@ -1,0 +1,194 @@
+"""Trained policies: one seed's Q-network, read from a run or from a small policy file.
+
+A run's ``checkpoint.pkl`` holds every seed's networks, the optimiser, the replay buffer and the pickled
+environments (tens to hundreds of MB). A *policy file* (``.npz``) holds what acting needs: one seed's
+online parameters, the run's `TrainConfig` (which fixes the network and the task) and a little provenance
+(source run, seed, step, validation success). ``ecorl export`` writes one; ``ecorl video`` reads either,
+and by default the policy shipped for the task in ``assets/policies/``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from train.config import TrainConfig
+from train.evaluate import EvalResult, Evaluator
+from train.network import QNetwork
+from train.rundir import RunDir
+from train.tasks import get_task, probe
+
+POLICY_DIR = Path(__file__).resolve().parents[1] / "assets" / "policies"
+"""Where the repository keeps one trained policy per grid task (``<task>.npz``)."""
+
+POLICY_FORMAT = 1
+"""Version of the policy-file layout; files of another version are refused."""
+
+
+@dataclass
+class Policy:
+    """One agent's Q-network with the configuration it was trained under."""
+
+    cfg: TrainConfig
+    """The training run's `TrainConfig` (task, knobs, network sizes, evaluation horizon)."""
+    params: torch.Tensor
+    """The online network's flat parameters, shape (1, P)."""
+    seed: int
+    """The agent's training seed."""
+    meta: dict[str, Any] = field(default_factory=dict)
+    """Provenance: source run, step, validation success at export, ..."""
+
+    def __post_init__(self) -> None:
+        self._info = info = probe(get_task(self.cfg.env.task), self.cfg.env)
+        d = self.cfg.dqn
+        self._net = QNetwork(info.view_dim, info.obs_dim - info.view_dim, info.num_actions, d.view_layers,
+                             d.inventory_layers, d.head_layers)
+        if self.params.shape != (1, self._net.num_params):
+            raise ValueError(f"policy parameters have shape {tuple(self.params.shape)}, but the network of "
+                             f"this configuration needs (1, {self._net.num_params})")
+        self._bound = self._net.bind(self.params)
+
+    @property
+    def obs_dim(self) -> int:
+        """Length of the observations the policy reads."""
+        return self._info.obs_dim
+
+    @property
+    def task(self) -> str:
+        """The task the policy was trained on."""
+        return self.cfg.env.task
+
+    def greedy(self, obs: torch.Tensor) -> np.ndarray:
+        """Greedy actions (1, N) of observations (1, N, obs_dim), as `DoubleDQN.greedy` for one agent."""
+        with torch.no_grad():
+            return self._net.forward(self._bound, obs)[0].argmax(-1).numpy()
+
+    def act(self, obs: np.ndarray) -> int:
+        """The greedy action for one observation."""
+        return int(self.greedy(torch.from_numpy(np.asarray(obs, dtype=np.float32)).view(1, 1, -1))[0, 0])
+
+    def evaluate(self, rollouts: int = 100, epsilon: float | None = None) -> EvalResult:
+        """Success and return on the first ``rollouts`` validation layouts of the test MDP (the paper's
+        protocol: epsilon-greedy with the run's evaluation epsilon unless ``epsilon`` is given)."""
+        info = self._info
+        test_kwargs = {**info.test_kwargs, "horizon": self.cfg.eval.eval_horizon or info.test_kwargs["horizon"]}
+        eps = self.cfg.eval.eval_epsilon if epsilon is None else epsilon
+        evaluator = Evaluator(get_task(self.task).env_id, test_kwargs, 1, rollouts, eps, info.num_actions)
+        try:
+            return evaluator(self, [self.seed], step=0)
+        finally:
+            evaluator.close()
+
+
+def run_config(run_dir: Path) -> TrainConfig:
+    """The `TrainConfig` a run directory was made with."""
+    return TrainConfig.from_dict(json.loads((run_dir / "config.json").read_text()))
+
+
+def resolve_run_dir(path: str | Path) -> Path:
+    """The run directory of a run directory or of a checkpoint file inside one."""
+    path = Path(path)
+    run_dir = path.parent if path.is_file() else path
+    if not (run_dir / "checkpoint.pkl").exists() or not (run_dir / "config.json").exists():
+        raise FileNotFoundError(f"{path} is not a run directory with config.json and checkpoint.pkl "
+                                f"(nor a checkpoint.pkl inside one, nor a .npz policy file)")
+    return run_dir
+
+
+def validation_success(run_dir: Path, step: int | None = None) -> dict[int, float]:
+    """Validation success of each seed index at evaluation ``step`` (default: the run's last evaluation);
+    empty if there is no such evaluation."""
+    path = run_dir / "metrics.csv"
+    rows = list(csv.DictReader(path.open())) if path.exists() else []
+    if not rows:
+        return {}
+    step = max(int(r["step"]) for r in rows) if step is None else step
+    seeds = run_config(run_dir).run.seed_list
+    return {seeds.index(int(r["seed"])): float(r["success"]) for r in rows if int(r["step"]) == step}
+
+
+def _load_run(path: str | Path) -> tuple[Path, dict[str, Any]]:
+    """The run directory of ``path`` and its verified checkpoint."""
+    run_dir = resolve_run_dir(path)
+    return run_dir, RunDir(run_dir).load_checkpoint(run_config(run_dir))
+
+
+def _policy_of(run_dir: Path, state: dict[str, Any], seed_index: int) -> Policy:
+    """Seed number ``seed_index`` of a loaded checkpoint as a `Policy`."""
+    cfg = TrainConfig.from_dict(state["config"])
+    if not 0 <= seed_index < cfg.run.seeds:
+        raise ValueError(f"{run_dir} trained {cfg.run.seeds} seed(s); --agent must be in [0, {cfg.run.seeds})")
+    step = int(state["step"])
+    meta = {"source": str(run_dir), "step": step, "agent": seed_index}
+    success = validation_success(run_dir, step)
+    if seed_index in success:
+        meta["validation_success"] = success[seed_index]
+    params = state["agent"]["online"][seed_index:seed_index + 1].clone()
+    return Policy(cfg, params, cfg.run.seed_list[seed_index], meta)
+
+
+def policy_from_run(path: str | Path, seed_index: int = 0) -> Policy:
+    """The online network of seed number ``seed_index`` in the run at ``path`` (run dir or checkpoint)."""
+    return _policy_of(*_load_run(path), seed_index)
+
+
+def save_policy(policy: Policy, out: str | Path) -> Path:
+    """Write ``policy`` as a policy file (float32 parameters, config and provenance as JSON)."""
+    out = Path(out)
+    if out.suffix != ".npz":
+        raise ValueError(f"a policy file must end in .npz, got {out}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    header = {"format": POLICY_FORMAT, "config": policy.cfg.to_dict(), "seed": policy.seed, "meta": policy.meta}
+    np.savez_compressed(out, params=policy.params.numpy().astype(np.float32), header=np.array(json.dumps(header)))
+    return out
+
+
+def load_policy_file(path: str | Path) -> Policy:
+    """Read a policy file written by `save_policy`; refuse anything else with a reason."""
+    path = Path(path)
+    if not zipfile.is_zipfile(path):
+        raise ValueError(f"{path} is not an ecorl policy file (not an .npz archive); write one with "
+                         f"'ecorl export RUN_DIR --out FILE.npz'")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            params, header = data["params"], json.loads(str(data["header"]))
+    except (OSError, ValueError, KeyError, json.JSONDecodeError) as err:
+        raise ValueError(f"{path} is not an ecorl policy file ({err}); write one with "
+                         f"'ecorl export RUN_DIR --out FILE.npz'") from err
+    if header.get("format") != POLICY_FORMAT:
+        raise ValueError(f"{path} has policy format {header.get('format')}, this ecorl reads {POLICY_FORMAT}")
+    cfg = TrainConfig.from_dict(header["config"])
+    return Policy(cfg, torch.from_numpy(params), int(header["seed"]), dict(header.get("meta", {})))
+
+
+def load_policy(path: str | Path, seed_index: int = 0) -> Policy:
+    """A policy file (``.npz``), or seed number ``seed_index`` of a run directory or checkpoint."""
+    path = Path(path)
+    if path.suffix == ".npz":
+        if not path.is_file():
+            raise FileNotFoundError(f"no policy file at {path}")
+        return load_policy_file(path)
+    return policy_from_run(path, seed_index)
+
+
+def export_policy(run_dir: str | Path, out: str | Path, seed_index: int | None = None) -> Path:
+    """Write seed ``seed_index`` of a run as a policy file; by default the seed with the best validation
+    success at the checkpoint's step."""
+    run_dir, state = _load_run(run_dir)
+    if seed_index is None:
+        success = validation_success(run_dir, int(state["step"]))
+        seed_index = max(success, key=lambda k: (success[k], -k)) if success else 0
+    return save_policy(_policy_of(run_dir, state, seed_index), out)
+
+
+def shipped_policy(task: str) -> Path | None:
+    """The policy file shipped for ``task`` in `POLICY_DIR`, if there is one."""
+    path = POLICY_DIR / f"{task}.npz"
+    return path if path.is_file() else None
