@@ -216,9 +216,11 @@ def add_video_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=None,
                         help="output MP4 (default: RUN_DIR/video.mp4 for a run, else TASK-trained.mp4 or "
                              "TASK-random.mp4)")
+    parser.add_argument("--episodes", type=_positive, default=3,
+                        help="whole episodes to film, each at most the test horizon (default: 3)")
     parser.add_argument("--steps", type=_positive, default=None,
-                        help="environment steps to film (default: one test-MDP episode, the test horizon)")
-    parser.add_argument("--seed", type=int, default=0, help="layout and exploration seed (default: 0)")
+                        help="film exactly this many steps instead (new episodes after each end)")
+    parser.add_argument("--seed", type=int, default=0, help="first layout and exploration seed (default: 0)")
     parser.add_argument("--agent", type=int, default=0, help="which of the run's seeds acts, by index (default: 0)")
     parser.add_argument("--epsilon", type=float, default=0.05, help="exploration of the policy (default: 0.05)")
     parser.add_argument("--train-env", action="store_true",
@@ -250,11 +252,13 @@ def video_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
 
     try:
         policy, default_out = _video_source(args)
-        path = record_video(args.task, args.out or default_out, policy_path=policy, steps=args.steps,
-                            seed=args.seed, seed_index=args.agent, train_env=args.train_env, epsilon=args.epsilon)
+        video = record_video(args.task, args.out or default_out, policy_path=policy, steps=args.steps,
+                             seed=args.seed, seed_index=args.agent, train_env=args.train_env, epsilon=args.epsilon,
+                             episodes=args.episodes)
     except (ValueError, FileNotFoundError) as err:
         return _error("video", err)
-    print(path)
+    print(f"solved {video.solved} of the {video.episodes} episode(s) filmed", file=sys.stderr)
+    print(video.path)
     return 0
 
 

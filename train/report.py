@@ -370,7 +370,7 @@ def render_missing_videos(exp: ExperimentResults) -> list[Path]:
     for run in exp.runs:
         target = run.path / "video.mp4"
         if run.done and not target.exists() and (run.path / "checkpoint.pkl").exists():
-            made.append(record_video(None, target, policy_path=run.path))
+            made.append(record_video(None, target, policy_path=run.path).path)
     return made
 
 

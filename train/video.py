@@ -7,6 +7,7 @@ The policy is one seed's network from a run directory, its ``checkpoint.pkl``, o
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +17,9 @@ from train.policy import Policy, load_policy
 
 VIDEO_EPSILON = 0.05
 """Exploration of the filmed policy (a little noise keeps a greedy agent from freezing in a loop)."""
+
+VIDEO_EPISODES = 3
+"""Episodes filmed by default: one episode shows a single layout, a few show what the policy usually does."""
 
 
 def env_kwargs_for(task: str, policy: Policy | None, train_env: bool) -> dict[str, Any]:
@@ -32,27 +36,60 @@ def env_kwargs_for(task: str, policy: Policy | None, train_env: bool) -> dict[st
     return kwargs
 
 
-def rollout_frames(env, act: Callable[[np.ndarray], int], steps: int, seed: int) -> list[np.ndarray]:
-    """Frames of ``steps`` steps of ``act`` in ``env`` (a new episode after each end), first frame included."""
+@dataclass(frozen=True)
+class Film:
+    """A filmed rollout: its frames and how its episodes went."""
+
+    frames: list[np.ndarray]
+    """Rendered frames, the first reset included."""
+    episodes: int
+    """Episodes started in the film (the last may be cut off)."""
+    solved: int
+    """Episodes in which the task was solved (``info["solved"]``)."""
+
+
+def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | None = None,
+                 episodes: int = 1) -> Film:
+    """Film ``act`` in ``env`` from a reset with ``seed``: exactly ``steps`` steps (a new episode after each
+    end) or, without ``steps``, ``episodes`` whole episodes. The first frame is included."""
     obs, _ = env.reset(seed=seed)
-    frames = [env.render()]
-    for _ in range(steps):
-        obs, _, terminated, truncated, _ = env.step(act(obs))
+    frames, started, solved, solved_now, taken = [env.render()], 1, 0, False, 0
+    while steps is None or taken < steps:
+        obs, _, terminated, truncated, info = env.step(act(obs))
         frames.append(env.render())
+        taken += 1
+        solved_now |= bool(info.get("solved", False))
         if terminated or truncated:
+            solved, solved_now = solved + solved_now, False
+            if (steps is None and started == episodes) or taken == steps:
+                break
             obs, _ = env.reset()
             frames.append(env.render())
-    return frames
+            started += 1
+    return Film(frames, started, solved + solved_now)
+
+
+@dataclass(frozen=True)
+class Video:
+    """A written video file and the rollout it shows."""
+
+    path: Path
+    """The MP4."""
+    episodes: int
+    """Episodes started in it."""
+    solved: int
+    """Episodes solved in it."""
 
 
 def record_video(task: str | None, out: str | Path, policy_path: str | Path | None = None, steps: int | None = None,
-                 seed: int = 0, seed_index: int = 0, train_env: bool = False,
-                 epsilon: float = VIDEO_EPSILON) -> Path:
-    """Write an MP4 of one rollout and return its path.
+                 seed: int = 0, seed_index: int = 0, train_env: bool = False, epsilon: float = VIDEO_EPSILON,
+                 episodes: int = VIDEO_EPISODES) -> Video:
+    """Write an MP4 of one rollout; return its path and how many episodes it shows solved.
 
     ``policy_path`` (a run directory, checkpoint or policy file) selects the trained policy (of seed number
-    ``seed_index`` of a run); without it a uniform random policy acts. ``steps`` defaults to the
-    environment's horizon (one episode of the test MDP). ``seed`` seeds the layout and the exploration draws.
+    ``seed_index`` of a run); without it a uniform random policy acts. The film is ``steps`` steps long, or
+    without ``steps`` ``episodes`` whole episodes (each at most the horizon; a reset-free env has one
+    episode, so its film is one horizon long). ``seed`` seeds the first layout and the exploration draws.
     """
     import gymnasium as gym
 
@@ -76,10 +113,11 @@ def record_video(task: str | None, out: str | Path, policy_path: str | Path | No
             return int(rng.integers(n_actions))
         return policy.act(obs)
 
-    n = steps if steps is not None else int(kwargs.get("horizon", 200))
+    if steps is None and kwargs.get("reset_free"):
+        steps = int(kwargs.get("horizon", 200))
     try:
-        frames = rollout_frames(env, act, n, seed)
+        film = film_rollout(env, act, seed, steps, episodes)
         fps = env.metadata.get("render_fps", 8)
     finally:
         env.close()
-    return write_video(frames, out, fps=fps)
+    return Video(write_video(film.frames, out, fps=fps), film.episodes, film.solved)

@@ -6,6 +6,7 @@ import argparse
 import csv
 
 import cv2
+import numpy as np
 import pytest
 
 from train import commands
@@ -96,3 +97,33 @@ def test_policy_video_from_a_run(smoke_root, tmp_path, capsys):
     assert "trained on 'salad'" in capsys.readouterr().err
     assert commands.main(["video", "salad", "--policy", str(run_dir), "--agent", "5"]) == 2
     assert commands.main(["video", "salad", "--policy", str(tmp_path)]) == 2
+
+
+class _CountingEnv:
+    """Episodes of ``length`` steps, solved when the action was 1 on the last step; frames number the steps."""
+
+    def __init__(self, length: int) -> None:
+        self.length, self.t, self.resets = length, 0, 0
+
+    def reset(self, seed=None):
+        self.t, self.resets = 0, self.resets + 1
+        return 0, {}
+
+    def step(self, action):
+        self.t += 1
+        end = self.t == self.length
+        return 0, 0.0, end, False, {"solved": end and action == 1}
+
+    def render(self):
+        return np.full((2, 2, 3), self.t, np.uint8)
+
+
+def test_film_counts_whole_episodes_and_solved_ones():
+    from train.video import film_rollout
+
+    actions = iter([0, 0, 1, 0, 0, 0, 0, 0, 1])
+    film = film_rollout(_CountingEnv(3), lambda obs: next(actions), seed=0, episodes=3)
+    assert (film.episodes, film.solved) == (3, 2)
+    assert len(film.frames) == 1 + 3 * 3 + 2  # first reset, 9 steps, two resets between episodes
+    film = film_rollout(_CountingEnv(3), lambda obs: 1, seed=0, steps=4)
+    assert (film.episodes, film.solved, len(film.frames)) == (2, 1, 1 + 4 + 1)

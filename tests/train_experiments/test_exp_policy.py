@@ -132,6 +132,7 @@ SHIPPED = sorted(POLICY_DIR.glob("*.npz"))
 def test_shipped_policy_beats_a_random_policy(path):
     policy = load_policy_file(path)
     assert path.stem == policy.task
-    trained = policy.evaluate(rollouts=100).success[0]
-    random = policy.evaluate(rollouts=100, epsilon=1.0).success[0]
-    assert trained >= 0.2 and trained >= 3 * random, (trained, random)
+    trained = policy.evaluate(rollouts=100)
+    random = policy.evaluate(rollouts=100, epsilon=1.0)  # the paper's protocol with a uniform random policy
+    assert trained.success[0] >= random.success[0] + 0.25, (trained, random)
+    assert trained.returns[0] > random.returns[0], (trained, random)
