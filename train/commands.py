@@ -1,4 +1,4 @@
-"""The ``ecorl`` subcommands ``run``, ``report``, ``measure``, ``video`` and ``export``.
+"""The ``ecorl`` subcommands ``run``, ``report``, ``measure``, ``video``, ``export`` and ``evaluate``.
 
 Each ``add_<name>_parser(subparsers)`` adds one subcommand whose handler is ``handler(args, parser) -> int``
 (the convention of `train.cli`). ``python -m train.commands ...`` runs them without the rest of the CLI.
@@ -28,6 +28,13 @@ def _error(command: str, err: BaseException) -> int:
     """Report a user error of ``ecorl COMMAND`` on stderr; the exit status 2 (argparse's, for bad input)."""
     print(f"ecorl {command}: error: {err}", file=sys.stderr)
     return 2
+
+
+def _probability(text: str) -> float:
+    value = float(text)
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text}")
+    return value
 
 
 # ---- ecorl run -----------------------------------------------------------------------------------------
@@ -222,7 +229,8 @@ def add_video_parser(subparsers) -> argparse.ArgumentParser:
                         help="film exactly this many steps instead (new episodes after each end)")
     parser.add_argument("--seed", type=int, default=0, help="first layout and exploration seed (default: 0)")
     parser.add_argument("--agent", type=int, default=0, help="which of the run's seeds acts, by index (default: 0)")
-    parser.add_argument("--epsilon", type=float, default=0.05, help="exploration of the policy (default: 0.05)")
+    parser.add_argument("--epsilon", type=_probability, default=0.05,
+                        help="exploration of the policy (default: 0.05)")
     parser.add_argument("--train-env", action="store_true",
                         help="film the run's training env (its knobs) instead of the test MDP")
     parser.set_defaults(handler=video_command)
@@ -295,7 +303,45 @@ def export_command(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
     return 0
 
 
-SUBCOMMANDS = (add_run_parser, add_report_parser, add_measure_parser, add_video_parser, add_export_parser)
+# ---- ecorl evaluate ------------------------------------------------------------------------------------
+
+
+def add_evaluate_parser(subparsers) -> argparse.ArgumentParser:
+    """``ecorl evaluate POLICY [--agent K] [--rollouts N] [--epsilon E]``."""
+    parser = subparsers.add_parser(
+        "evaluate", help="a policy's success on the validation layouts, beside a random policy's",
+        description="Evaluate a trained policy (a policy file, or one seed of a run) by the paper's protocol: "
+                    "epsilon-greedy rollouts of the test horizon on the fixed validation layouts of the test "
+                    "MDP. A uniform random policy is evaluated on the same layouts for comparison.")
+    parser.add_argument("policy", type=Path, metavar="POLICY", help="policy file (.npz), run directory or checkpoint")
+    parser.add_argument("--agent", type=int, default=0, help="which of a run's seeds, by index (default: 0)")
+    parser.add_argument("--rollouts", type=_positive, default=100, help="validation layouts (default: 100)")
+    parser.add_argument("--epsilon", type=_probability, default=None,
+                        help="exploration during evaluation (default: the run's, 0.1 in the paper)")
+    parser.set_defaults(handler=evaluate_command)
+    return parser
+
+
+def evaluate_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    """Print the policy's and a random policy's success and mean return."""
+    from train.policy import load_policy
+
+    try:
+        policy = load_policy(args.policy, args.agent)
+        results = {"policy": policy.evaluate(args.rollouts, args.epsilon),
+                   "random": policy.evaluate(args.rollouts, epsilon=1.0)}
+    except (ValueError, FileNotFoundError) as err:
+        return _error("evaluate", err)
+    eps = policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon
+    print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP:")
+    for name, r in results.items():
+        how = f"epsilon {eps:g}" if name == "policy" else "uniform random"
+        print(f"  {name:>6s} ({how}): success {100 * r.success[0]:.0f} %, mean return {r.returns[0]:.1f}")
+    return 0
+
+
+SUBCOMMANDS = (add_run_parser, add_report_parser, add_measure_parser, add_video_parser, add_export_parser,
+               add_evaluate_parser)
 """The subcommands of this module, in the order ``ecorl --help`` lists them."""
 
 

@@ -113,6 +113,13 @@ def test_export_and_video_commands(run_dir, tmp_path, capsys):
     assert "trained on 'salad'" in capsys.readouterr().err
     assert commands.main(["export", str(tmp_path), "--out", str(out)]) == 2
     assert "not a run directory" in capsys.readouterr().err
+    assert commands.main(["evaluate", str(out), "--rollouts", "5"]) == 0
+    printed = capsys.readouterr().out
+    assert "salad, 5 validation layouts" in printed and "policy (epsilon 0.1)" in printed
+    assert "uniform random" in printed
+    with pytest.raises(SystemExit):
+        commands.main(["evaluate", str(out), "--epsilon", "1.5"])
+    assert "probability in [0, 1]" in capsys.readouterr().err
 
 
 def test_video_defaults_to_the_shipped_policy(tmp_path, capsys, monkeypatch):
