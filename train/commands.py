@@ -239,15 +239,15 @@ def add_video_parser(subparsers) -> argparse.ArgumentParser:
 
 def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
     """The policy to film (None: random) and the default output path, from the parsed arguments."""
-    from train.policy import resolve_run_dir, shipped_policy
+    from train.policy import POLICY_DIR, resolve_run_dir, shipped_policy
 
     if args.random:
         return None, Path(f"{args.task}-random.mp4")
     if args.policy is None:
         shipped = shipped_policy(args.task)
         if shipped is None:
-            print(f"ecorl video: no trained policy is shipped for {args.task}; filming a random policy",
-                  file=sys.stderr)
+            print(f"ecorl video: no trained policy for {args.task} in {POLICY_DIR}; filming a random policy "
+                  f"(pass --policy to film your own)", file=sys.stderr)
         return shipped, Path(f"{args.task}-{'trained' if shipped else 'random'}.mp4")
     if args.policy.suffix == ".npz":
         return args.policy, Path(f"{args.task}-trained.mp4")
@@ -265,7 +265,7 @@ def video_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
                              episodes=args.episodes)
     except (ValueError, FileNotFoundError) as err:
         return _error("video", err)
-    print(f"solved {video.solved} of the {video.episodes} episode(s) filmed", file=sys.stderr)
+    print(video.summary(), file=sys.stderr)
     print(video.path)
     return 0
 

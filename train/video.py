@@ -46,6 +46,8 @@ class Film:
     """Episodes started in the film (the last may be cut off)."""
     solved: int
     """Episodes in which the task was solved (``info["solved"]``)."""
+    total_return: float
+    """Sum of the rewards over the film."""
 
 
 def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | None = None,
@@ -53,11 +55,12 @@ def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | 
     """Film ``act`` in ``env`` from a reset with ``seed``: exactly ``steps`` steps (a new episode after each
     end) or, without ``steps``, ``episodes`` whole episodes. The first frame is included."""
     obs, _ = env.reset(seed=seed)
-    frames, started, solved, solved_now, taken = [env.render()], 1, 0, False, 0
+    frames, started, solved, solved_now, taken, total = [env.render()], 1, 0, False, 0, 0.0
     while steps is None or taken < steps:
-        obs, _, terminated, truncated, info = env.step(act(obs))
+        obs, reward, terminated, truncated, info = env.step(act(obs))
         frames.append(env.render())
         taken += 1
+        total += float(reward)
         solved_now |= bool(info.get("solved", False))
         if terminated or truncated:
             solved, solved_now = solved + solved_now, False
@@ -66,7 +69,7 @@ def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | 
             obs, _ = env.reset()
             frames.append(env.render())
             started += 1
-    return Film(frames, started, solved + solved_now)
+    return Film(frames, started, solved + solved_now, total)
 
 
 @dataclass(frozen=True)
@@ -79,6 +82,16 @@ class Video:
     """Episodes started in it."""
     solved: int
     """Episodes solved in it."""
+    total_return: float
+    """Sum of the rewards over the film."""
+    metric: str
+    """The task's evaluation metric, 'success' or 'return' (`train.tasks.Task.metric`)."""
+
+    def summary(self) -> str:
+        """One line on how the filmed episodes went, in the task's metric."""
+        if self.metric == "return":
+            return f"mean return {self.total_return / self.episodes:.1f} over the {self.episodes} episode(s) filmed"
+        return f"solved {self.solved} of the {self.episodes} episode(s) filmed"
 
 
 def record_video(task: str | None, out: str | Path, policy_path: str | Path | None = None, steps: int | None = None,
@@ -120,4 +133,5 @@ def record_video(task: str | None, out: str | Path, policy_path: str | Path | No
         fps = env.metadata.get("render_fps", 8)
     finally:
         env.close()
-    return Video(write_video(film.frames, out, fps=fps), film.episodes, film.solved)
+    return Video(write_video(film.frames, out, fps=fps), film.episodes, film.solved, film.total_return,
+                 get_task(task).metric)

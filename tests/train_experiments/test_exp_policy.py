@@ -129,7 +129,7 @@ def test_video_defaults_to_the_shipped_policy(tmp_path, capsys, monkeypatch):
     name = "scavenging-trained.mp4" if shipped_policy("scavenging") else "scavenging-random.mp4"
     assert written.out.strip() == name and (tmp_path / name).exists()
     assert commands.main(["video", "foodcollector", "--steps", "3"]) == 0
-    assert "no trained policy is shipped for foodcollector" in capsys.readouterr().err
+    assert "no trained policy for foodcollector" in capsys.readouterr().err
 
 
 SHIPPED = sorted(POLICY_DIR.glob("*.npz"))
