@@ -465,16 +465,24 @@ def build_sections(root: Path, videos: bool | None = None) -> list[Section]:
     return sections
 
 
+def _shown(path: Path) -> Path:
+    """``path`` relative to the working directory when it lies inside it (reports get copied around)."""
+    try:
+        return Path(path).resolve().relative_to(Path.cwd().resolve())
+    except ValueError:
+        return Path(path)
+
+
 def _budget_line(exp: ExperimentResults) -> str:
     known = EXPERIMENTS.get(exp.name)
     budget = exp.info.get("budget", "?")
     paper_seeds = f"; the paper's budget is {known.paper_seeds} seeds" if known else ""
-    return f"Budget: `{budget}`{paper_seeds}. Directory: `{exp.path}`."
+    return f"Budget: `{budget}`{paper_seeds}. Directory: `{_shown(exp.path)}`."
 
 
 def write_markdown(root: Path, sections: Sequence[Section]) -> Path:
     """``report.md``: per experiment its figures, final results beside the paper's, and the paper's claims."""
-    lines = [f"# ecorl report: `{root}`", "",
+    lines = [f"# ecorl report: `{_shown(root)}`", "",
              "Success = fraction of the 100 fixed validation layouts of the test MDP solved (food collector: mean "
              "return over validation episodes), at the last evaluation; mean over seeds with a 95% bootstrap "
              "confidence interval. Paper column: **≈** a value read from a figure or quoted in the paper's text "
