@@ -319,8 +319,11 @@ class _Logger:
         self.run_dir = run_dir
         self.writer = None
         if cfg.run.tensorboard:
-            from torch.utils.tensorboard import SummaryWriter  # lazy: TensorBoard is optional
-
+            try:
+                from torch.utils.tensorboard import SummaryWriter  # lazy: TensorBoard is optional
+            except ImportError as err:
+                raise ImportError(f"--tensorboard needs the tensorboard package ({err}); install it with "
+                                  f"pip install 'ecorl[tensorboard]', or drop --tensorboard") from err
             self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"))
 
     def log(self, trainer: Trainer, rows: list[dict[str, Any]]) -> None:

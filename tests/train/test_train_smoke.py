@@ -66,7 +66,6 @@ def test_episode_boundaries_are_not_terminals_on_truncation(tmp_path):
 
 
 def test_tensorboard_logging_is_optional_and_lazy(tmp_path):
-    pytest.importorskip("tensorboard")
     cfg = TrainConfig().replace(task="salad", steps=700, updates_per_epoch=5, eval_every=500, eval_rollouts=2,
                                 eval_horizon=5, buffer_size=2_000, progress=False, tensorboard=True)
     Trainer(cfg, tmp_path).run()
