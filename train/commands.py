@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from train.experiments import BUDGETS, EXPERIMENTS, GRID_TASKS, get_experiment
+from train.rundir import RunDirError
 
 DEFAULT_OUT = Path("results")
 """Where ``ecorl run`` puts experiments unless told otherwise."""
@@ -263,7 +264,7 @@ def video_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         video = record_video(args.task, args.out or default_out, policy_path=policy, steps=args.steps,
                              seed=args.seed, seed_index=args.agent, train_env=args.train_env, epsilon=args.epsilon,
                              episodes=args.episodes)
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, RunDirError) as err:
         return _error("video", err)
     print(video.summary(), file=sys.stderr)
     print(video.path)
@@ -294,7 +295,7 @@ def export_command(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
 
     try:
         path = export_policy(args.run, args.out, args.agent)
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, RunDirError) as err:
         return _error("export", err)
     meta = load_policy_file(path).meta
     success = meta.get("validation_success")
@@ -330,7 +331,7 @@ def evaluate_command(args: argparse.Namespace, parser: argparse.ArgumentParser) 
         policy = load_policy(args.policy, args.agent)
         results = {"policy": policy.evaluate(args.rollouts, args.epsilon),
                    "random": policy.evaluate(args.rollouts, epsilon=1.0)}
-    except (ValueError, FileNotFoundError) as err:
+    except (ValueError, FileNotFoundError, RunDirError) as err:
         return _error("evaluate", err)
     eps = policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon
     print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP:")

@@ -122,6 +122,18 @@ def test_export_and_video_commands(run_dir, tmp_path, capsys):
     assert "probability in [0, 1]" in capsys.readouterr().err
 
 
+def test_a_corrupt_checkpoint_is_refused_by_name(run_dir, tmp_path, capsys):
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    with (copy / "checkpoint.pkl").open("r+b") as f:
+        f.seek(-100, 2)
+        f.write(b"x" * 100)
+    for command in (["export", str(copy), "--out", str(tmp_path / "p.npz")], ["evaluate", str(copy)],
+                    ["video", "salad", "--policy", str(copy), "--steps", "2"]):
+        assert commands.main(command) == 2
+        assert "corrupt" in capsys.readouterr().err
+
+
 def test_video_defaults_to_the_shipped_policy(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert commands.main(["video", "scavenging", "--steps", "5"]) == 0
