@@ -23,6 +23,11 @@ EVAL_STREAM = 0xE7A1
 """Spawn key that separates evaluation draws from every training stream of a seed."""
 
 
+def evaluation_kwargs(test_kwargs: dict, eval_horizon: int | None) -> dict:
+    """The test MDP's keyword arguments with each rollout ``eval_horizon`` long (None: the test horizon)."""
+    return {**test_kwargs, "horizon": eval_horizon or test_kwargs["horizon"]}
+
+
 @dataclass(frozen=True)
 class EvalResult:
     """Per-agent evaluation results."""

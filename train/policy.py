@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from train.config import TrainConfig
-from train.evaluate import EvalResult, Evaluator
+from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
 from train.network import QNetwork
 from train.rundir import RunDir
 from train.tasks import get_task, probe
@@ -61,6 +61,11 @@ class Policy:
         return self._info.obs_dim
 
     @property
+    def test_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of the test MDP the policy is evaluated in (at the run's evaluation horizon)."""
+        return evaluation_kwargs(self._info.test_kwargs, self.cfg.eval.eval_horizon)
+
+    @property
     def task(self) -> str:
         """The task the policy was trained on."""
         return self.cfg.env.task
@@ -77,10 +82,8 @@ class Policy:
     def evaluate(self, rollouts: int = 100, epsilon: float | None = None) -> EvalResult:
         """Success and return on the first ``rollouts`` validation layouts of the test MDP (the paper's
         protocol: epsilon-greedy with the run's evaluation epsilon unless ``epsilon`` is given)."""
-        info = self._info
-        test_kwargs = {**info.test_kwargs, "horizon": self.cfg.eval.eval_horizon or info.test_kwargs["horizon"]}
         eps = self.cfg.eval.eval_epsilon if epsilon is None else epsilon
-        evaluator = Evaluator(get_task(self.task).env_id, test_kwargs, 1, rollouts, eps, info.num_actions)
+        evaluator = Evaluator(get_task(self.task).env_id, self.test_kwargs, 1, rollouts, eps, self._info.num_actions)
         try:
             return evaluator(self, [self.seed], step=0)
         finally:

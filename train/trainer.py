@@ -24,7 +24,7 @@ import torch
 
 from train.config import TrainConfig
 from train.dqn import DoubleDQN
-from train.evaluate import Evaluator
+from train.evaluate import Evaluator, evaluation_kwargs
 from train.network import QNetwork
 from train.replay import Replay
 from train.rnd import RND
@@ -165,7 +165,7 @@ class Trainer:
     def evaluator(self) -> Evaluator:
         """The evaluation protocol's batched environment (built on first use)."""
         if self._evaluator is None:
-            test_kwargs = {**self.info.test_kwargs, "horizon": self.cfg.eval.eval_horizon}
+            test_kwargs = evaluation_kwargs(self.info.test_kwargs, self.cfg.eval.eval_horizon)
             self._evaluator = Evaluator(self.task.env_id, test_kwargs, self.num_agents,
                                         self.cfg.eval.eval_rollouts, self.cfg.eval.eval_epsilon,
                                         self.info.num_actions)

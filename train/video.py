@@ -27,13 +27,10 @@ def env_kwargs_for(task: str, policy: Policy | None, train_env: bool) -> dict[st
     from train.config import EnvConfig
     from train.tasks import get_task, probe
 
-    env_cfg = policy.cfg.env if policy is not None else EnvConfig(task=task)
-    if train_env:
-        return dict(env_cfg.env_make_kwargs)
-    kwargs = dict(probe(get_task(task), env_cfg).test_kwargs)
-    if policy is not None and policy.cfg.eval.eval_horizon:
-        kwargs["horizon"] = policy.cfg.eval.eval_horizon
-    return kwargs
+    if policy is not None:
+        return dict(policy.cfg.env.env_make_kwargs) if train_env else policy.test_kwargs
+    env_cfg = EnvConfig(task=task)
+    return dict(env_cfg.env_make_kwargs) if train_env else dict(probe(get_task(task), env_cfg).test_kwargs)
 
 
 @dataclass(frozen=True)
