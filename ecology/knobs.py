@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-REWARD_MODES = ("sparse", "subgoal", "one_time", "distance")
+REWARD_MODES = ("sparse", "waypoint", "subgoal", "one_time", "distance")
 """Reward modes of the grid tasks; the food collector only has ``sparse`` (its native ±1)."""
 
 SCHEDULE_HELP = (

@@ -7,8 +7,11 @@ what it is worth), filled in by the task's module. The compiled kernels below re
 the five tasks share one implementation, and the single environment is the batched one with one world.
 
 A step is the sequence of phases
-    act -> move_creatures -> move_predators -> wither -> grow_resources -> reward -> observe
-each a small compiled function of (world, rules) that tests can call on its own.
+    act -> move_creatures -> move_predators -> grow_resources -> wither -> reward -> observe
+each a small compiled function of (world, rules) that tests can call on its own. The order is the original
+code's: new objects grow before everything ages, so an object with lifespan L can be picked up on L - 1
+steps after the one it grew in. In hunting (``creatures_before_hands``) the deer move between the
+agent's move and its pick-up / place, as in the original.
 
 Randomness: each world owns a SplitMix64 stream (``world.rng``), seeded from the environment's
 ``np_random``. Every draw of a world comes from its own stream, so a world behaves identically whether it
@@ -42,8 +45,9 @@ DY = np.array([0, 0, -1, 1], dtype=np.int64)
 STEP_DX = np.array([0, -1, 0, 1, 0], dtype=np.int64)
 STEP_DY = np.array([-1, 0, 1, 0, 0], dtype=np.int64)
 
-SPARSE, SUBGOAL, ONE_TIME, DISTANCE = range(4)
-REWARD_MODE_IDS = {"sparse": SPARSE, "subgoal": SUBGOAL, "one_time": ONE_TIME, "distance": DISTANCE}
+SPARSE, SUBGOAL, ONE_TIME, DISTANCE, WAYPOINT = range(5)
+REWARD_MODE_IDS = {"sparse": SPARSE, "subgoal": SUBGOAL, "one_time": ONE_TIME, "distance": DISTANCE,
+                   "waypoint": WAYPOINT}
 TASK_REWARD = 100.0
 SUBGOAL_REWARD = 1.0
 LOST_PROGRESS_PENALTY = -100.0
@@ -63,6 +67,7 @@ def world_dtype(n: int) -> np.dtype:
             ("grid", np.uint8, (n, n)),  # object code per cell, indexed [y, x]
             ("age", np.int32, (n, n)),  # steps an object has existed (for withering)
             ("agent", np.int64, (2,)),  # (x, y)
+            ("start", np.int64, (2,)),  # the agent's cell at the last reset; (-1, -1) while placing objects
             ("inventory", np.uint8),  # carried code, 0 = empty hands
             ("carried_age", np.int32),
             ("rng", np.uint64),  # SplitMix64 state of this world
@@ -98,7 +103,12 @@ def rules_dtype(n: int) -> np.dtype:
             ("growth_cap", np.int64),  # no growth while a group already has more than this many
             ("lifespan", np.int64, (NC,)),  # steps until an object withers, 0 = permanent
             ("near_spawn", np.uint8, (NC,)),  # new objects of this group grow in the shaping window
-            ("wander_prob", np.float64, (NC,)),  # per-step probability of a random step to a free cell
+            ("wander_prob", np.float64, (NC,)),  # per-step probability of a random step
+            ("wander_moves", np.int64, (NC,)),  # candidates of that step: 4 (N, W, S, E) or 5 (and stay)
+            ("creatures_before_hands", np.bool_),  # creatures move before pick-up / place (hunting)
+            ("spawn_on_agent", np.bool_),  # new objects may grow under the agent (not on its start cell)
+            ("count_carried", np.bool_),  # replenishment counts the carried object too
+            ("waypoint_repeats", np.bool_),  # waypoint mode pays every pick-up / product, not once a cycle
             ("directed", np.int64, (NC,)),  # +1 steps toward the agent, -1 away, 0 never
             ("directed_prob", np.float64, (NC,)),  # probability of that directed step
             ("directed_by_shaping", np.uint8, (NC,)),  # directed probability is the shaping strength
@@ -108,7 +118,7 @@ def rules_dtype(n: int) -> np.dtype:
             ("deliver_item", np.int64),  # placing this item on deliver_target completes the task
             ("deliver_target", np.int64),
             ("goal_pickup", np.int64),  # picking up this code completes the task (0: none)
-            ("max_material", np.int64),  # workers dispense only while fewer of the material are on the grid
+            ("max_material", np.int64),  # workers dispense only while at most this many of the material are on the grid
             ("num_predators", np.int64),
             ("predator_lifespan", np.int64),
             ("predator_wander_prob", np.float64),
@@ -135,6 +145,8 @@ def new_rules(n: int) -> np.ndarray:
     r["stage_on_made"] = -1
     r["growth_cap"] = (n - 2) ** 2 // 8
     r["base_deer"] = Code.DEER
+    r["wander_moves"] = 4
+    r["spawn_on_agent"] = True
     return rules
 
 
@@ -216,12 +228,11 @@ def count_code(w, n: int, code: int) -> int:
 
 
 @nb.njit(cache=True)
-def place_random(w, n: int, code: int, x0: int, y0: int, x1: int, y1: int) -> bool:
-    """Put ``code`` on a uniformly chosen empty cell of [x0, x1) × [y0, y1), not under the agent.
+def place_random(w, n: int, code: int, x0: int, y0: int, x1: int, y1: int, ax: int, ay: int) -> bool:
+    """Put ``code`` on a uniformly chosen empty cell of [x0, x1) × [y0, y1) other than (ax, ay).
 
     Returns False (and places nothing) when no such cell exists.
     """
-    ax, ay = w.agent[0], w.agent[1]
     free = 0
     for y in range(y0, y1):
         for x in range(x0, x1):
@@ -243,20 +254,28 @@ def place_random(w, n: int, code: int, x0: int, y0: int, x1: int, y1: int) -> bo
 
 @nb.njit(cache=True)
 def spawn(w, r, group: int, near: bool, s: float) -> bool:
-    """Add one object of ``group``: anywhere, or inside the shaping window around the agent if ``near``."""
+    """Add one object of ``group``: anywhere, or inside the shaping window around the agent if ``near``.
+
+    Never on the agent's start cell (the original's rule, so an object may grow under the agent), or,
+    with ``spawn_on_agent`` off, never under the agent.
+    """
     n = r.n
+    if r.spawn_on_agent:
+        ex, ey = w.start[0], w.start[1]
+    else:
+        ex, ey = w.agent[0], w.agent[1]
     code = group
     if group == _DEER:
         code = r.base_deer
         if r.easy_deer_shaping and uniform(w) < s:
             code = _DEER_EASY
     if not near:
-        return place_random(w, n, code, 1, 1, n - 1, n - 1)
+        return place_random(w, n, code, 1, 1, n - 1, n - 1, ex, ey)
     side = window_side(n, s)
     # The window is shifted (not cut) at the walls so that it always covers side × side interior cells.
     x0 = max(1, min(w.agent[0] - side // 2, n - 1 - side))
     y0 = max(1, min(w.agent[1] - side // 2, n - 1 - side))
-    return place_random(w, n, code, x0, y0, min(x0 + side, n - 1), min(y0 + side, n - 1))
+    return place_random(w, n, code, x0, y0, min(x0 + side, n - 1), min(y0 + side, n - 1), ex, ey)
 
 
 @nb.njit(cache=True)
@@ -290,21 +309,13 @@ def directed_step(w, n: int, x: int, y: int, direction: int):
 
 
 @nb.njit(cache=True)
-def random_free_neighbour(w, n: int, x: int, y: int):
-    """A uniformly chosen free neighbour among N, W, S, E, or (x, y) itself if none is free."""
-    options = 0
-    for k in range(4):
-        if free_cell(w, n, x + STEP_DX[k], y + STEP_DY[k]):
-            options += 1
-    if options == 0:
-        return x, y
-    pick = randint(w, options)
-    for k in range(4):
-        nx, ny = x + STEP_DX[k], y + STEP_DY[k]
-        if free_cell(w, n, nx, ny):
-            if pick == 0:
-                return nx, ny
-            pick -= 1
+def random_step(w, n: int, x: int, y: int, moves: int):
+    """The original's random step: one of the first ``moves`` of N, W, S, E, stay, uniformly, taken only if
+    the target is free (a blocked creature stays where it is)."""
+    k = randint(w, moves)
+    nx, ny = x + STEP_DX[k], y + STEP_DY[k]
+    if free_cell(w, n, nx, ny):
+        return nx, ny
     return x, y
 
 
@@ -344,7 +355,7 @@ def act(w, r, action: int):
             picked = c
     elif action == INTERACT:
         material = DISPENSES[w.grid[y, x]]
-        if w.inventory == 0 and material != 0 and count_code(w, r.n, material) < r.max_material:
+        if w.inventory == 0 and material != 0 and count_code(w, r.n, material) <= r.max_material:
             w.inventory, w.carried_age = material, 0
             w.pickups[material] += 1
             picked = material
@@ -386,7 +397,7 @@ def move_creatures(w, r, s: float) -> None:
         if r.directed[c] != 0 and uniform(w) < p_directed:
             nx, ny = directed_step(w, n, x, y, r.directed[c])
         elif uniform(w) < r.wander_prob[c]:
-            nx, ny = random_free_neighbour(w, n, x, y)
+            nx, ny = random_step(w, n, x, y, r.wander_moves[c])
         else:
             continue
         if nx != x or ny != y:
@@ -407,12 +418,12 @@ def respawn_predator(w, r, i: int) -> None:
 @nb.njit(cache=True)
 def move_predators(w, r, tx: int, ty: int) -> bool:
     """Predators chase the cell (tx, ty) the agent stood on before its move (greedy L1 step) or, with
-    probability p, step at random; they live ``predator_lifespan`` steps and then reappear at random.
+    probability p, take a random one of N, W, S, E, stay; they live ``predator_lifespan`` steps and then reappear at random.
     Returns True if one ends the step on the agent's cell."""
     for i in range(r.num_predators):
         x, y = w.pred[i, 0], w.pred[i, 1]
         if uniform(w) < r.predator_wander_prob:
-            k = randint(w, 4)
+            k = randint(w, 5)  # N, W, S, E or stay, as the original's monsters
             nx, ny = x + STEP_DX[k], y + STEP_DY[k]
         else:
             nx, ny = x, y
@@ -437,13 +448,14 @@ def move_predators(w, r, tx: int, ty: int) -> bool:
 
 @nb.njit(cache=True)
 def grow_resources(w, r, s: float) -> None:
-    """Replenish depleted populations (one object per group per step; carried objects count) and grow
-    new ones with their per-step probability, inside the shaping window for groups that spawn near the
-    agent."""
+    """Replenish depleted populations (one object per group per step) and grow new ones with their
+    per-step probability, inside the shaping window for groups that spawn near the agent. Populations
+    are counted on the grid, as in the original (a carried object is not counted unless
+    ``count_carried``), so picking up the last lettuce grows a new one at once."""
     counts = np.empty(NC, dtype=np.int64)
     count_codes(w, r.n, counts)
-    if w.inventory != 0:
-        counts[GROUP[w.inventory]] += 1  # the carried object still belongs to the population
+    if r.count_carried and w.inventory != 0:
+        counts[GROUP[w.inventory]] += 1
     for g in range(NC):
         keep, p = r.replenish[g], r.grow_prob[g]
         if keep == 0 and p == 0.0:
@@ -480,10 +492,13 @@ def task_reward(w, r, picked: int, made: int, dropped: int, solved: bool) -> flo
         stage = r.stage_on_pickup[picked]
     if made != 0:
         stage = max(stage, r.stage_on_made[made])
+    if stage >= 0 and r.reward_mode == WAYPOINT and r.waypoint_repeats:
+        return SUBGOAL_REWARD  # the original's waypoint reward: every pick-up and product pays, farmable
     if stage >= 0 and w.stage_done[stage] == 0:
         w.stage_done[stage] = 1
         return SUBGOAL_REWARD
-    if r.reward_mode >= ONE_TIME and dropped != 0 and r.loses_progress_on_drop[dropped] != 0:
+    penalised = r.reward_mode == ONE_TIME or r.reward_mode == DISTANCE
+    if penalised and dropped != 0 and r.loses_progress_on_drop[dropped] != 0:
         return LOST_PROGRESS_PENALTY
     if r.reward_mode == DISTANCE:
         for k in range(NUM_TARGET_GROUPS):
@@ -539,6 +554,7 @@ def reset_world(w, r, obs) -> None:
     w.pickups[:] = 0
     w.made[:] = 0
     w.agent[0], w.agent[1] = -1, -1
+    w.start[0], w.start[1] = -1, -1
     s = shaping_strength(r, w.lifetime_step)
     for code in range(NC):
         for _ in range(r.initial[code]):
@@ -554,6 +570,7 @@ def reset_world(w, r, obs) -> None:
             if w.grid[y, x] == _EMPTY:
                 if k == 0:
                     w.agent[0], w.agent[1] = x, y
+                    w.start[0], w.start[1] = x, y
                 k -= 1
     for i in range(r.num_predators):
         respawn_predator(w, r, i)
@@ -565,16 +582,20 @@ def step_world(w, r, action: int, obs):
     """One step of one world. Returns (reward, terminated, truncated, solved, caught)."""
     s = shaping_strength(r, w.lifetime_step)
     start_x, start_y = w.agent[0], w.agent[1]
+    creatures_first = r.creatures_before_hands and action >= PICK_UP
+    if creatures_first:
+        move_creatures(w, r, s)
     picked, made, dropped, delivered = act(w, r, action)
     solved = delivered or (picked != 0 and picked == r.goal_pickup)
     if solved:
         w.completions += 1
         if r.reset_free and not delivered:
             w.inventory = 0  # the world goes on: the completed task's object is consumed (and regrows)
-    move_creatures(w, r, s)
+    if not creatures_first:
+        move_creatures(w, r, s)
     caught = move_predators(w, r, start_x, start_y) if r.num_predators > 0 else False
-    wither(w, r)
     grow_resources(w, r, s)
+    wither(w, r)
     reward = task_reward(w, r, picked, made, dropped, solved)
     if caught:
         reward -= r.predator_penalty

@@ -8,6 +8,7 @@ observation channels, and fills the rules tables in `fill_rules`.
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -43,6 +44,22 @@ def check_choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
     """Raise a clear error unless ``value`` is one of ``choices``."""
     if value not in choices:
         raise ValueError(f"unknown {name} {value!r}; choose one of {', '.join(choices)}")
+
+
+@dataclass(frozen=True)
+class SpawnRules:
+    """Where and how many new objects grow: the original code's rules by default, ours as options.
+
+    Task parameter dataclasses whose objects grow or are replenished (salad, hunting, scavenging)
+    inherit these fields; docs/fidelity.md gives each option's measured effect.
+    """
+
+    spawn_on_agent: bool = True
+    """New objects may grow on the agent's own cell (only its start cell is excluded), as in the original,
+    where the agent can pick one up on the next step without moving. False: never under the agent."""
+    count_carried: bool = False
+    """Replenishment also counts the carried object. False (original): only the grid counts, so picking up
+    the last lettuce grows a new one at once and hunting keeps 2 axes on the grid while one is carried."""
 
 
 class GridTaskEnv(gym.Env):
@@ -104,6 +121,9 @@ class GridTaskEnv(gym.Env):
             raise ValueError(f"a shaping schedule may have at most {engine.MAX_BREAKPOINTS} breakpoints")
         r["shaping"][: len(bp)] = bp
         r["num_breakpoints"] = len(bp)
+        if isinstance(self.config, SpawnRules):
+            r["spawn_on_agent"] = self.config.spawn_on_agent
+            r["count_carried"] = self.config.count_carried
         self.fill_rules(r)
         return rules
 

@@ -21,13 +21,13 @@ class FactoryConfig:
     grid_size: int = 8
     """Side of the square grid, wall ring included."""
     max_material: int = 5
-    """A worker dispenses only while fewer than this many of its material lie on the grid."""
+    """A worker dispenses only while at most this many of its material lie on the grid (the original's rule)."""
     horizon: int = 200
     """Episode length of the episodic env (the test horizon)."""
 
     def __post_init__(self) -> None:
         check_positive_int("grid_size", self.grid_size, 5)
-        check_positive_int("max_material", self.max_material)
+        check_positive_int("max_material", self.max_material, 0)
         check_positive_int("horizon", self.horizon)
 
 
@@ -37,7 +37,7 @@ class FactoryEnv(GridTaskEnv):
     ## Actions (Discrete(7))
     | 0 west | 1 east | 2 north | 3 south | 4 pick up | 5 interact | 6 place |
     ``interact`` on a worker's cell with empty hands receives its material (metal worker -> metal, wood
-    worker -> wood) while fewer than ``max_material`` of it lie on the grid. Workers cannot be picked up.
+    worker -> wood) while at most ``max_material`` of it lie on the grid. Workers cannot be picked up.
     ``place`` drops the carried material, combines metal and wood into an axe on the cell, or — carrying
     an axe on the depot — delivers it (the axe is used up, the depot stays).
 
@@ -47,7 +47,8 @@ class FactoryEnv(GridTaskEnv):
     same 8 channels.
 
     ## Rewards
-    +100 per delivery (every mode). ``subgoal``: +1 the first time in a cycle the agent receives a
+    +100 per delivery (every mode). ``waypoint`` (the original's subgoal reward, farmable): +1 every time
+    the agent receives a material, makes an axe or picks one up. ``subgoal`` (ours, not farmable): +1 the first time in a cycle the agent receives a
     material, makes an axe and holds an axe. ``one_time``: as subgoal (dropping is part of the task, so
     no lost-progress penalty, as in the original). ``distance``: one_time, plus -0.01 × L1 distance to
     the next target (axe, else a worker; the other material or its worker when holding one; the depot
@@ -57,7 +58,8 @@ class FactoryEnv(GridTaskEnv):
     Episodic: terminated on delivery, truncated after ``horizon``. Reset-free: never.
 
     ## Dynamism and shaping
-    dynamism p: each step each worker moves to a random adjacent free cell with probability p.
+    dynamism p: each step each worker, with probability p, picks one of N, W, S, E, stay at random and
+    moves there if the cell holds no object (the original's rule).
     shaping s(t): with probability s(t) a worker instead steps toward the agent ("cooperative workers").
     The depot is fixed at (1, 1). Test MDP: static workers, horizon 200.
     """
@@ -79,12 +81,14 @@ class FactoryEnv(GridTaskEnv):
         for worker in WORKERS:
             r["initial"][worker] = 1
             r["wander_prob"][worker] = self.ecology.dynamism
+            r["wander_moves"][worker] = 5  # the original's workers pick among N, W, S, E and stay
             r["directed"][worker] = 1
             r["directed_by_shaping"][worker] = True
         for material in MATERIALS:
             r["stage_on_pickup"][material] = 0
         r["stage_on_made"][Code.AXE] = 1
         r["stage_on_pickup"][Code.AXE] = 2
+        r["waypoint_repeats"] = True
         r["targets"][Code.EMPTY] = [code_mask(Code.AXE), code_mask(*WORKERS), 0]
         r["targets"][Code.METAL] = [code_mask(Code.WOOD), code_mask(Code.WOOD_WORKER), 0]
         r["targets"][Code.WOOD] = [code_mask(Code.METAL), code_mask(Code.METAL_WORKER), 0]

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from gridtasks.codes import Code
 from gridtasks.engine import code_mask
-from gridtasks.env import GridTaskEnv, check_choice, check_positive_int, check_probability
+from gridtasks.env import GridTaskEnv, SpawnRules, check_choice, check_positive_int, check_probability
 
 DEER_KINDS = {"wander": Code.DEER, "easy": Code.DEER_EASY, "hard": Code.DEER_HARD}
 SHAPING_MECHANISMS = ("easy_deer", "nearby")
@@ -14,7 +14,7 @@ ALL_DEER = (Code.DEER, Code.DEER_EASY, Code.DEER_HARD)
 
 
 @dataclass(frozen=True)
-class HuntingConfig:
+class HuntingConfig(SpawnRules):
     """Parameters of the hunting task."""
 
     grid_size: int = 8
@@ -58,7 +58,8 @@ class HuntingEnv(GridTaskEnv):
     ``channel·25 + row·5 + col``, then the carried object one-hot over the same 5 channels.
 
     ## Rewards
-    +100 for picking up food (every mode). ``subgoal``: +1 the first time in a cycle the agent holds an
+    +100 for picking up food (every mode). ``subgoal`` and ``waypoint`` (the original's hunting subgoal
+    reward is progress-based, so the two coincide here): +1 the first time in a cycle the agent holds an
     axe and the first time it makes food. ``one_time``: subgoal, plus -100 for dropping the axe on an
     empty cell. ``distance``: one_time, plus -0.01 × L1 distance to the nearest food, else axe (empty
     hands), or deer (holding an axe) on otherwise unrewarded steps.
@@ -67,8 +68,12 @@ class HuntingEnv(GridTaskEnv):
     Episodic: terminated on picking up food, truncated after ``horizon``. Reset-free: never; food is eaten.
 
     ## Dynamism and shaping
-    dynamism p: each step each deer moves to a random adjacent free cell with probability p (after its
-    own directed step, if it did not take one). Deer never step onto walls or other objects.
+    dynamism p: each step each deer (that took no directed step) picks one of N, W, S, E at random with
+    probability p and moves there if the cell holds no object; deer never step onto walls or objects, but
+    may step onto the agent. As in the original, deer move after the agent's move and before its
+    pick-up / place. Replenishment counts the grid only (two axes stay on the grid while the agent
+    carries a third; ``count_carried`` changes this), and new deer and axes may appear under the agent
+    (``spawn_on_agent``).
     shaping s(t), ``shaping_mechanism='easy_deer'`` (paper): a fraction s(t) of newly spawned deer
     (including the initial ones, drawn at reset) are easy, the rest are of ``deer_kind``.
     ``'nearby'`` (original code): replenished deer and axes appear inside the salad-style window around
@@ -90,6 +95,7 @@ class HuntingEnv(GridTaskEnv):
         r["directed"][Code.DEER_EASY], r["directed_prob"][Code.DEER_EASY] = 1, cfg.deer_speed
         r["directed"][Code.DEER_HARD], r["directed_prob"][Code.DEER_HARD] = -1, cfg.deer_speed
         r["base_deer"] = DEER_KINDS[cfg.deer_kind]
+        r["creatures_before_hands"] = True  # the original moves deer before the agent's pick-up / place
         r["goal_pickup"] = Code.FOOD
         r["initial"][Code.DEER], r["initial"][Code.AXE] = cfg.deer_count, cfg.axe_count
         if cfg.replenish:

@@ -6,13 +6,13 @@ from dataclasses import dataclass
 
 from gridtasks.codes import Code
 from gridtasks.engine import code_mask
-from gridtasks.env import GridTaskEnv, check_positive_int
+from gridtasks.env import GridTaskEnv, SpawnRules, check_positive_int
 
 INGREDIENTS = (Code.LETTUCE, Code.CARROT)
 
 
 @dataclass(frozen=True)
-class SaladConfig:
+class SaladConfig(SpawnRules):
     """Parameters of the salad-making task."""
 
     grid_size: int = 8
@@ -74,7 +74,9 @@ class SaladEnv(GridTaskEnv):
     carried object one-hot over the same 5 channels (all zero when empty-handed).
 
     ## Rewards
-    +100 for picking up a salad (the task) in every mode. ``subgoal``: +1 the first time in a cycle the
+    +100 for picking up a salad (the task) in every mode. ``waypoint`` (the original's subgoal reward, as
+    its released Fig. 4 scripts trained): +1 on every pick-up of an ingredient and every salad made, so
+    pick-up / drop loops farm it. ``subgoal`` (ours, not farmable): +1 the first time in a cycle the
     agent holds an ingredient and the first time it makes a salad. ``one_time``: subgoal, plus -100 for
     dropping a carried ingredient on an empty cell (lost progress). ``distance``: one_time, plus on
     otherwise unrewarded steps -0.01 × L1 distance to the nearest object needed next (the salad if one
@@ -86,9 +88,13 @@ class SaladEnv(GridTaskEnv):
 
     ## Dynamism and shaping
     dynamism p: each step each ingredient grows at a random empty cell with probability p, and every
-    ingredient withers ``initial_count / p`` steps after it appeared (the expected count stays
-    ``initial_count``); growth stops while more than (n-2)²//8 of a kind exist. p = 0: ingredients are
-    permanent and regrow only when none of a kind is left (``regrow_when_empty``).
+    ingredient withers when its age reaches ``int(initial_count / p)`` (the expected count stays about
+    ``initial_count``); growth stops while more than (n-2)²//8 of a kind are on the grid. p = 0:
+    ingredients are permanent and regrow only when none of a kind is left on the grid
+    (``regrow_when_empty``). As in the original, growth comes before ageing (a grown ingredient can be
+    picked up on lifespan - 1 steps), populations are counted on the grid only (picking up the last
+    lettuce grows one at once; ``count_carried`` changes this) and an ingredient may grow under the agent
+    (never on its start cell; ``spawn_on_agent=False`` forbids it).
     shaping s(t): new ingredients grow inside a square around the agent whose side shrinks from the whole
     grid (s=0) to 2 cells (s=1); side = 2 + floor((1 - s)·(2n - 2)).
     Test MDP: 1 lettuce and 1 carrot, nothing grows or withers, horizon 100 (walled: 500).
@@ -117,6 +123,7 @@ class SaladEnv(GridTaskEnv):
             r["stage_on_pickup"][code] = 0
             r["loses_progress_on_drop"][code] = True
         r["stage_on_made"][Code.SALAD] = 1
+        r["waypoint_repeats"] = True
         r["targets"][Code.EMPTY] = [code_mask(Code.SALAD), code_mask(*INGREDIENTS), 0]
         r["targets"][Code.LETTUCE] = [code_mask(Code.CARROT), 0, 0]
         r["targets"][Code.CARROT] = [code_mask(Code.LETTUCE), 0, 0]

@@ -6,11 +6,11 @@ from dataclasses import dataclass
 
 from gridtasks.codes import Code
 from gridtasks.engine import MAX_PREDATORS, code_mask
-from gridtasks.env import GridTaskEnv, check_positive_int
+from gridtasks.env import GridTaskEnv, SpawnRules, check_positive_int
 
 
 @dataclass(frozen=True)
-class ScavengingConfig:
+class ScavengingConfig(SpawnRules):
     """Parameters of the scavenging task."""
 
     grid_size: int = 10
@@ -51,7 +51,7 @@ class ScavengingEnv(GridTaskEnv):
 
     ## Rewards
     +100 for picking up food in every mode; -``predator_penalty`` (100) on each step a predator shares the
-    agent's cell, in every mode. No intermediate stages, so ``subgoal`` and ``one_time`` equal sparse;
+    agent's cell, in every mode. No intermediate stages, so ``waypoint``, ``subgoal`` and ``one_time`` equal sparse;
     ``distance`` adds -0.01 × L1 distance to the nearest food on otherwise unrewarded steps.
 
     ## Episode end
@@ -60,7 +60,7 @@ class ScavengingEnv(GridTaskEnv):
     ## Creatures, dynamism and shaping
     Predators are not grid objects: they walk over food. Each step (after the agent acts) a predator takes
     the greedy L1 step toward the agent (ties: N, W, S, E, stay); with probability p (dynamism) it steps
-    in a uniformly random direction instead. After ``predator_lifespan`` steps it reappears at a random
+    to a uniformly random one of N, W, S, E, stay instead (the original's rule). After ``predator_lifespan`` steps it reappears at a random
     cell other than the agent's. Food is replenished to ``food_count``, one per step.
     shaping s(t): new food appears inside the salad-style window around the agent.
     Test MDP: p = 0 (chasing predators), horizon 200.

@@ -83,12 +83,13 @@ def parse_map(text: str) -> tuple[np.ndarray, tuple[int, int] | None, list[tuple
 
 def world_from_map(env, text: str, agent: tuple[int, int] | None = None, inventory: int = 0,
                    predators: list[tuple[int, int]] | None = None, ages: dict | None = None,
-                   pred_ages: list[int] | None = None):
+                   pred_ages: list[int] | None = None, start: tuple[int, int] = (-1, -1)):
     """Overwrite the live world of ``env`` with the drawn map and return the world record.
 
     ``agent``: the agent's (x, y) when it stands on an object (otherwise mark it '@'). ``inventory``: the
     carried code. ``predators``: (x, y) per predator (in addition to 'P' marks); a task with predators
-    needs every one of them placed. ``ages``: {(x, y): age} of objects (others get age 0).
+    needs every one of them placed. ``ages``: {(x, y): age} of objects (others get age 0). ``start``: the
+    agent's start cell, where nothing grows (default: none).
     """
     u = env.unwrapped
     world = u.world
@@ -104,6 +105,7 @@ def world_from_map(env, text: str, agent: tuple[int, int] | None = None, invento
     for (x, y), age in (ages or {}).items():
         world["age"][y, x] = age
     world["agent"][:] = agent
+    world["start"][:] = start
     world["inventory"] = inventory
     world["carried_age"] = 0
     preds = marked + list(predators or [])

@@ -138,7 +138,7 @@ def test_bad_knobs_raise_clear_errors(kwargs, message):
 
 
 def test_unknown_task_parameter_lists_the_valid_ones():
-    with pytest.raises(TypeError, match="valid task parameters: grid_size"):
+    with pytest.raises(TypeError, match="valid task parameters: .*grid_size"):
         gridtasks.SaladEnv(deer_speed=0.2)
 
 

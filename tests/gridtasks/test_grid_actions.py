@@ -480,8 +480,8 @@ def test_interact_on_material_on_the_ground_does_not_pick_it_up():
     assert world["inventory"] == 0
 
 
-@pytest.mark.parametrize("on_grid, dispenses", [(0, True), (1, True), (2, False), (3, False)])
-def test_workers_dispense_only_while_fewer_than_max_material_lie_on_the_grid(on_grid, dispenses):
+@pytest.mark.parametrize("on_grid, dispenses", [(0, True), (1, True), (2, True), (3, False)])
+def test_workers_dispense_only_while_at_most_max_material_lie_on_the_grid(on_grid, dispenses):
     env = factory(max_material=2)
     metals = "M" * on_grid + "." * (5 - on_grid)
     text = f"""
@@ -496,14 +496,14 @@ def test_workers_dispense_only_while_fewer_than_max_material_lie_on_the_grid(on_
     world = world_from_map(env, text, agent=(3, 3))
     env.step(INTERACT)
     assert world["inventory"] == (Code.METAL if dispenses else 0)
-    # wood on the grid does not count toward metal, and 3 woods >= 2 stop the wood worker
+    # wood on the grid does not count toward metal, and 3 woods > 2 stop the wood worker
     world_from_map(env, text, agent=(4, 5))
     env.step(INTERACT)
     assert world["inventory"] == 0
 
 
 def test_max_material_counts_only_the_grid_not_the_hands():
-    env = factory(max_material=1)
+    env = factory(max_material=0)
     world = world_from_map(env, WORKERS, agent=(3, 3))
     env.step(INTERACT)  # hands: metal, grid: 0 metal
     env.step(EAST)

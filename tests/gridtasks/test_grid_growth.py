@@ -58,8 +58,9 @@ def test_each_ingredient_grows_with_probability_p_per_step():
         assert abs(n - p * trials) < tolerance(trials, p), code.name
 
 
-def test_grown_ingredients_land_on_empty_cells_never_under_the_agent():
-    env = salad(dynamism=1.0)
+@pytest.mark.parametrize("spawn_on_agent", [True, False])
+def test_grown_ingredients_land_on_empty_cells_under_the_agent_only_if_allowed(spawn_on_agent):
+    env = salad(dynamism=1.0, spawn_on_agent=spawn_on_agent)
     rules = env.unwrapped.rules[0]
     seen = set()
     for _ in range(400):
@@ -69,7 +70,8 @@ def test_grown_ingredients_land_on_empty_cells_never_under_the_agent():
         assert len(new) == 2
         seen |= new
     interior = {(x, y) for x in range(1, 6) for y in range(1, 6)}
-    assert seen == interior - {(2, 2), (4, 4), (5, 5)}
+    under_agent = set() if spawn_on_agent else {(5, 5)}
+    assert seen == interior - {(2, 2), (4, 4)} - under_agent
 
 
 def test_growth_stops_while_more_than_the_cap_exist():
@@ -164,31 +166,44 @@ def test_static_salad_keeps_every_ingredient_forever():
 # ---------------------------------------------------------------------------------------------- regrowth
 
 
-def test_static_ingredients_regrow_only_when_none_is_left():
+def test_static_ingredients_regrow_only_when_none_is_left_on_the_grid():
     env = salad(dynamism=0.0, regrow_when_empty=True)
     world = world_from_map(env, BARE, agent=(2, 2))
     env.step(PICK_UP)
-    # the carried lettuce still belongs to the population (docs/fidelity.md): nothing regrows yet
-    assert cells(world, Code.LETTUCE) == [] and cells(world, Code.CARROT) == [(4, 4)]
+    # the original counts the grid only: the carried lettuce does not stop one regrowing at once
+    (lettuce,) = cells(world, Code.LETTUCE)
+    assert cells(world, Code.CARROT) == [(4, 4)]
     for action in (engine.EAST, engine.EAST, engine.SOUTH, engine.SOUTH):
         env.step(action)
-    assert cells(world, Code.LETTUCE) == []
-    env.step(PLACE)  # lettuce + carrot -> salad: none of either kind is left, one of each regrows at once
+    assert cells(world, Code.LETTUCE) == [lettuce]
+    env.step(PLACE)  # lettuce + carrot -> salad: no carrot is left, one regrows at once
     assert world["grid"][4, 4] == Code.SALAD
-    (lettuce,) = cells(world, Code.LETTUCE)
+    assert cells(world, Code.LETTUCE) == [lettuce]
     (carrot,) = cells(world, Code.CARROT)
     for _ in range(50):
         env.step(INTERACT)
     assert cells(world, Code.LETTUCE) == [lettuce] and cells(world, Code.CARROT) == [carrot]
 
 
-def test_dropping_the_carried_last_ingredient_regrows_nothing():
+def test_with_count_carried_the_carried_lettuce_holds_back_regrowth():
+    env = salad(dynamism=0.0, regrow_when_empty=True, count_carried=True)
+    world = world_from_map(env, BARE, agent=(2, 2))
+    env.step(PICK_UP)
+    for _ in range(20):
+        env.step(INTERACT)
+    assert cells(world, Code.LETTUCE) == [] and world["inventory"] == Code.LETTUCE
+
+
+def test_dropping_the_carried_last_ingredient_after_it_regrew_leaves_two():
     env = salad(dynamism=0.0, regrow_when_empty=True)
     world = world_from_map(env, BARE, agent=(2, 2))
     env.step(PICK_UP)
-    env.step(engine.NORTH)
+    (regrown,) = cells(world, Code.LETTUCE)
+    step = engine.NORTH if regrown != (2, 1) else engine.SOUTH
+    env.step(step)
     env.step(PLACE)
-    assert cells(world, Code.LETTUCE) == [(2, 1)]
+    dropped = (2, 1) if step == engine.NORTH else (2, 3)
+    assert sorted(cells(world, Code.LETTUCE)) == sorted([regrown, dropped])
 
 
 def test_no_regrowth_while_one_of_the_kind_is_left():
@@ -228,8 +243,8 @@ def test_hunting_replenishes_one_deer_and_one_axe_per_step():
     assert count(world, Code.DEER) == 2 and count(world, Code.AXE) == 2
 
 
-def test_a_carried_axe_counts_toward_the_hunting_population():
-    env = make(gridtasks.HuntingEnv, 7, deer_count=1, axe_count=2)
+def test_a_carried_axe_counts_toward_the_hunting_population_only_with_count_carried():
+    env = make(gridtasks.HuntingEnv, 7, deer_count=1, axe_count=2, count_carried=True)
     world = world_from_map(env, """
     #######
     #.....#
@@ -308,14 +323,14 @@ def spawn_cells(env, agent, trials: int, s: float) -> set[tuple[int, int]]:
 def test_full_shaping_grows_ingredients_only_in_the_2_cell_window(agent):
     env = salad(dynamism=0.0, shaping=1.0, regrow_when_empty=True)
     x, y = agent
-    window = {(x - 1, y - 1), (x, y - 1), (x - 1, y)}  # the 2×2 square ending at the agent, minus its cell
+    window = {(x - 1, y - 1), (x, y - 1), (x - 1, y), (x, y)}  # the 2×2 square ending at the agent
     assert spawn_cells(env, agent, 300, 1.0) == window
 
 
 @pytest.mark.parametrize(("agent", "window"), [
-    ((1, 1), {(2, 1), (1, 2), (2, 2)}),
-    ((5, 1), {(4, 1), (4, 2), (5, 2)}),
-    ((1, 4), {(1, 3), (2, 3), (2, 4)}),
+    ((1, 1), {(1, 1), (2, 1), (1, 2), (2, 2)}),
+    ((5, 1), {(4, 1), (5, 1), (4, 2), (5, 2)}),
+    ((1, 4), {(1, 3), (2, 3), (1, 4), (2, 4)}),
 ])
 def test_full_shaping_window_is_shifted_inside_the_walls_in_a_corner(agent, window):
     env = salad(dynamism=0.0, shaping=1.0, regrow_when_empty=True)
@@ -327,14 +342,14 @@ def test_intermediate_shaping_window_side_4():
     s = 5 / 6  # side = 2 + floor((1 - s)·12) = 4 on 7×7
     assert engine.window_side(7, s) == 4
     x0, y0 = 3 - 2, 3 - 2
-    window = {(x, y) for x in range(x0, x0 + 4) for y in range(y0, y0 + 4)} - {(3, 3)}
+    window = {(x, y) for x in range(x0, x0 + 4) for y in range(y0, y0 + 4)}
     assert spawn_cells(env, (3, 3), 1000, s) == window
 
 
 def test_unshaped_ingredients_grow_anywhere():
     env = salad(dynamism=0.0, shaping=0.0, regrow_when_empty=True)
     interior = {(x, y) for x in range(1, 6) for y in range(1, 6)}
-    assert spawn_cells(env, (3, 3), 1000, 0.0) == interior - {(3, 3), (5, 5)}
+    assert spawn_cells(env, (3, 3), 1000, 0.0) == interior - {(5, 5)}
 
 
 def test_shaped_regrowth_in_a_full_step_lands_next_to_the_agent():
@@ -363,7 +378,7 @@ def test_shaped_growth_with_dynamism_stays_in_the_window():
         world = world_from_map(env, BARE, agent=(4, 3))
         engine.grow_resources(world, rules, 1.0)
         new = set(cells(world, Code.LETTUCE, Code.CARROT)) - {(2, 2), (4, 4)}
-        assert new <= {(3, 2), (4, 2), (3, 3)}
+        assert new <= {(3, 2), (4, 2), (3, 3), (4, 3)}
 
 
 def test_initial_objects_ignore_the_window():
@@ -438,7 +453,7 @@ def test_easy_deer_fraction_is_the_shaping_strength():
 def test_nearby_mechanism_spawns_base_deer_and_axes_next_to_the_agent():
     env = hunting(deer_kind="hard", shaping=1.0, shaping_mechanism="nearby")
     rules = env.unwrapped.rules[0]
-    window = {(3, 2), (4, 2), (3, 3)}
+    window = {(3, 2), (4, 2), (3, 3), (4, 3)}
     for _ in range(100):
         world = world_from_map(env, """
         #######
@@ -468,4 +483,4 @@ def test_shaping_window_for_scavenging_food():
         #######
         """, agent=(2, 5))
         engine.grow_resources(world, env.unwrapped.rules[0], 1.0)
-        assert cells(world, Code.FOOD)[0] in {(1, 4), (2, 4), (1, 5)}
+        assert cells(world, Code.FOOD)[0] in {(1, 4), (2, 4), (1, 5), (2, 5)}

@@ -1,0 +1,150 @@
+"""What a uniform random policy experiences in the reset-free grid tasks: the dynamics' fingerprint.
+
+How often a random policy completes a task, how soon it first does, and how many resources lie on the grid
+are fixed by the rules alone (where, when and for how long objects appear), so they compare rule sets
+without any learning: ours against the original code's (docs/fidelity.md quotes them), or one option
+against another. Every world is reset-free with the sparse reward; all seeds step together in one batched
+call.
+
+    python -m gridtasks.random_policy                      # the standard settings, 32 seeds × 20 000 steps
+    python -m gridtasks.random_policy --param spawn_on_agent=False --param count_carried=True
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from gridtasks.codes import GROUP, Code
+from gridtasks.registration import TASKS
+
+SETTINGS: dict[str, tuple[str, dict]] = {
+    "salad p=0": ("salad", {"dynamism": 0.0}),
+    "salad p=0.05": ("salad", {"dynamism": 0.05}),
+    "salad p=0.1": ("salad", {"dynamism": 0.1}),
+    "salad p=0.5": ("salad", {"dynamism": 0.5}),
+    "hunting move=0": ("hunting", {"dynamism": 0.0}),
+    "hunting move=0.2": ("hunting", {"dynamism": 0.2}),
+    "factory move=0.2": ("factory", {"dynamism": 0.2}),
+}
+"""The settings the fidelity table reports: name -> (task, knobs)."""
+
+RESOURCES: dict[str, tuple[Code, ...]] = {
+    "salad": (Code.LETTUCE, Code.CARROT),
+    "walled-salad": (Code.LETTUCE, Code.CARROT),
+    "hunting": (Code.AXE, Code.DEER),
+    "scavenging": (Code.FOOD,),
+    "factory": (Code.METAL, Code.WOOD, Code.AXE),
+}
+"""Per task, the groups whose mean count on the grid is reported (deer counts every deer kind)."""
+
+
+@dataclass(frozen=True)
+class RandomPolicyStats:
+    """One setting's statistics over seeds (one reset-free world per seed)."""
+
+    name: str
+    seeds: int
+    steps: int
+    solves: np.ndarray
+    """Task completions per seed over ``steps`` steps."""
+    first_solve: np.ndarray
+    """Step of each seed's first completion (1-based); ``steps + 1`` where it never came."""
+    counts: dict[str, float]
+    """Mean number on the grid per resource group, over steps and seeds."""
+
+    @property
+    def solves_mean(self) -> float:
+        """Mean completions per seed."""
+        return float(self.solves.mean())
+
+    @property
+    def solves_ci(self) -> float:
+        """Half-width of the normal 95 % confidence interval of ``solves_mean``."""
+        return float(1.96 * self.solves.std(ddof=1) / np.sqrt(self.seeds)) if self.seeds > 1 else float("nan")
+
+    @property
+    def never_solved(self) -> int:
+        """Seeds that never completed the task."""
+        return int((self.first_solve > self.steps).sum())
+
+    def row(self) -> str:
+        """One markdown table row: name, solves [CI], first-solve mean / median, never-solved, counts."""
+        first = self.first_solve.astype(np.float64)
+        counts = ", ".join(f"{k} {v:.2f}" for k, v in self.counts.items())
+        return (f"| {self.name} | {self.solves_mean:.2f} ± {self.solves_ci:.2f} | {first.mean():.0f} / "
+                f"{np.median(first):.0f} | {self.never_solved} | {counts} |")
+
+
+HEADER = ("| setting | solves per seed (± 95 % CI) | first solve, mean / median step | seeds never solved | "
+          "mean count on the grid |\n|---|---|---|---|---|")
+
+
+def measure(task: str, knobs: dict, seeds: int = 32, steps: int = 20_000, seed: int = 0, name: str = "",
+            progress: bool = False) -> RandomPolicyStats:
+    """Run ``seeds`` reset-free worlds of ``task`` (knobs and task parameters in ``knobs``) under a uniform
+    random policy for ``steps`` steps; world i is seeded ``seed + i``, the actions by ``seed``."""
+    if task not in TASKS:
+        raise ValueError(f"unknown grid task {task!r}; choose one of {', '.join(TASKS)}")
+    from gridtasks.env import GridTaskVectorEnv
+
+    env = GridTaskVectorEnv(TASKS[task], seeds, copy=False, reset_free=True, reward="sparse", **knobs)
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    groups = RESOURCES[task]
+    solves = np.zeros(seeds, dtype=np.int64)
+    first = np.full(seeds, steps + 1, dtype=np.int64)
+    totals = np.zeros(len(groups), dtype=np.float64)
+    for t in tqdm(range(1, steps + 1), desc=name or task, disable=not progress, leave=False):
+        _, _, _, _, info = env.step(rng.integers(0, 7, seeds))
+        solved = info["solved"]
+        solves += solved
+        first[solved & (first > steps)] = t
+        on_grid = GROUP[env.worlds["grid"]]
+        for k, g in enumerate(groups):
+            totals[k] += np.count_nonzero(on_grid == g)
+    counts = {Code(g).name.lower(): totals[k] / (steps * seeds) for k, g in enumerate(groups)}
+    return RandomPolicyStats(name or task, seeds, steps, solves, first, counts)
+
+
+def parse_params(pairs: list[str]) -> dict:
+    """``['spawn_on_agent=False', 'max_material=6']`` -> ``{'spawn_on_agent': False, 'max_material': 6}``."""
+    params = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise SystemExit(f"error: --param expects NAME=VALUE, got {pair!r}")
+        try:
+            params[key] = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            params[key] = value
+    return params
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the random-policy table for the standard settings (or those named with ``--setting``)."""
+    parser = argparse.ArgumentParser(prog="python -m gridtasks.random_policy", description=__doc__.split("\n")[0])
+    parser.add_argument("--seeds", type=int, default=32, help="worlds per setting (default 32)")
+    parser.add_argument("--steps", type=int, default=20_000, help="steps per world (default 20 000)")
+    parser.add_argument("--setting", action="append", choices=list(SETTINGS), help="only these settings")
+    parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="a task parameter for every setting that has it, e.g. spawn_on_agent=False")
+    args = parser.parse_args(argv)
+    if args.seeds < 2 or args.steps < 1:
+        parser.error("--seeds must be >= 2 and --steps >= 1")
+    params = parse_params(args.param)
+    print(HEADER)
+    for name in args.setting or SETTINGS:
+        task, knobs = SETTINGS[name]
+        fields = TASKS[task].Config.__dataclass_fields__
+        extra = {k: v for k, v in params.items() if k in fields}
+        stats = measure(task, {**knobs, **extra}, args.seeds, args.steps, name=name, progress=True)
+        print(stats.row(), flush=True)
+
+
+if __name__ == "__main__":
+    main()
