@@ -418,8 +418,8 @@ def respawn_predator(w, r, i: int) -> None:
 @nb.njit(cache=True)
 def move_predators(w, r, tx: int, ty: int) -> bool:
     """Predators chase the cell (tx, ty) the agent stood on before its move (greedy L1 step) or, with
-    probability p, take a random one of N, W, S, E, stay; they live ``predator_lifespan`` steps and then reappear at random.
-    Returns True if one ends the step on the agent's cell."""
+    probability p, take a random one of N, W, S, E, stay; they live ``predator_lifespan`` steps and then
+    reappear at random. Returns True if one ends the step on the agent's cell."""
     for i in range(r.num_predators):
         x, y = w.pred[i, 0], w.pred[i, 1]
         if uniform(w) < r.predator_wander_prob:

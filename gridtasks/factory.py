@@ -48,11 +48,11 @@ class FactoryEnv(GridTaskEnv):
 
     ## Rewards
     +100 per delivery (every mode). ``waypoint`` (the original's subgoal reward, farmable): +1 every time
-    the agent receives a material, makes an axe or picks one up. ``subgoal`` (ours, not farmable): +1 the first time in a cycle the agent receives a
-    material, makes an axe and holds an axe. ``one_time``: as subgoal (dropping is part of the task, so
-    no lost-progress penalty, as in the original). ``distance``: one_time, plus -0.01 × L1 distance to
-    the next target (axe, else a worker; the other material or its worker when holding one; the depot
-    when holding an axe) on otherwise unrewarded steps.
+    the agent receives a material, makes an axe or picks one up. ``subgoal`` (ours, not farmable): +1 the
+    first time in a cycle the agent receives a material, makes an axe and holds an axe. ``one_time``: as
+    subgoal (dropping is part of the task, so no lost-progress penalty, as in the original).
+    ``distance``: one_time, plus -0.01 × L1 distance to the next target (axe, else a worker; the other
+    material or its worker when holding one; the depot when holding an axe) on otherwise unrewarded steps.
 
     ## Episode end
     Episodic: terminated on delivery, truncated after ``horizon``. Reset-free: never.

@@ -59,9 +59,10 @@ class ScavengingEnv(GridTaskEnv):
 
     ## Creatures, dynamism and shaping
     Predators are not grid objects: they walk over food. Each step (after the agent acts) a predator takes
-    the greedy L1 step toward the agent (ties: N, W, S, E, stay); with probability p (dynamism) it steps
-    to a uniformly random one of N, W, S, E, stay instead (the original's rule). After ``predator_lifespan`` steps it reappears at a random
-    cell other than the agent's. Food is replenished to ``food_count``, one per step.
+    the greedy L1 step toward the agent (ties: N, W, S, E, stay); with probability p (dynamism) it moves
+    to a uniformly random one of N, W, S, E, stay instead (the original's rule). After
+    ``predator_lifespan`` steps it reappears at a random cell other than the agent's. Food is replenished
+    to ``food_count`` on the grid, one per step (it may appear under the agent, as in the original).
     shaping s(t): new food appears inside the salad-style window around the agent.
     Test MDP: p = 0 (chasing predators), horizon 200.
     """

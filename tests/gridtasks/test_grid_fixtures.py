@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 from fixtures import assert_map, cells, make, map_of, parse_map, world_from_map
 
