@@ -133,6 +133,8 @@ class Experiment:
     """Plot visitation heat-maps at four points of training."""
     videos: bool = False
     """The report renders a rollout video of each condition's final policy."""
+    milestones: tuple[int, ...] = ()
+    """Steps at which the report tabulates every condition (mean, CI, seeds learned) besides the last one."""
 
     @property
     def tasks(self) -> tuple[str, ...]:
@@ -167,6 +169,7 @@ class Experiment:
         return {
             "name": self.name, "paper": self.paper, "title": self.title, "description": self.description,
             "heatmaps": self.heatmaps, "videos": self.videos, "measurement": self.is_measurement,
+            "milestones": list(self.milestones),
             "tasks": {task: [{"name": c.name, "label": c.label, "overrides": dict(c.overrides),
                               "measure": c.measure} for c in conds]
                       for task, conds in self.conditions.items()},
@@ -279,7 +282,7 @@ def _experiments() -> dict[str, Experiment]:
             "paper's text and the released code disagree (reward, learning rate, batch size, episodic "
             "horizon). Its paper budget is the study's: 10 seeds x 500 000 steps per arm.",
             {"salad": _settings_conditions()}, {"salad": 500_000}, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 120_000)}),
+            {"smoke": SMOKE, "quick": _quick(3, 120_000)}, milestones=(250_000, 500_000)),
         Experiment(
             "episodic-vs-reset-free", "Fig. 2", "Episodic vs non-episodic learning (static salad)",
             "Static salad-making with and without resets; heat-maps of where the agent spends its life.",

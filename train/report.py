@@ -39,6 +39,11 @@ PAPER_DIR = Path(__file__).resolve().parent.parent / "assets" / "paper"
 CI_LEVEL = 0.95
 BOOTSTRAP_SAMPLES = 2000
 HEATMAP_POINTS = 4
+LEARNED = 0.2
+"""A seed 'learned' the task when it solves more than this fraction of the validation layouts (outcomes are
+bimodal: a seed finds the task or it does not)."""
+MILESTONE_TOLERANCE = 5_000
+"""An evaluation stands for a milestone step when it lies within this many steps of it."""
 """Points of training shown in each heat-map row (the paper's Fig. 9-10 show four)."""
 
 
@@ -239,6 +244,7 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path) -> Path | None:
         for run in runs:
             color = color_of[run.condition]
             mean, low, high = bootstrap_ci(run.values)
+            ax.plot(run.steps, run.values, color=color, lw=0.5, alpha=0.35)  # each seed: the bimodality
             (line,) = ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
             ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
             handles.setdefault(run.label, line)
@@ -270,7 +276,7 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path) -> Path | None:
                    frameon=False, fontsize=9)
     seeds = sorted({r.seeds for r in exp.runs})
     title = (f"{exp.info.get('paper', '')}: {exp.info.get('title', exp.name)} (mean and {CI_LEVEL:.0%} bootstrap "
-             f"CI over {'/'.join(map(str, seeds))} seeds)")
+             f"CI over {'/'.join(map(str, seeds))} seeds; thin lines: single seeds)")
     fig.suptitle(textwrap.fill(title, int(width * 11)), fontsize=11)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
@@ -319,17 +325,57 @@ def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
 # ---- tables --------------------------------------------------------------------------------------------
 
 
+def summarize(values: np.ndarray, metric: str) -> tuple[str, str]:
+    """('mean [95% CI]', 'k / S' seeds learned, or '—' for returns) of one evaluation's per-seed values."""
+    mean, low, high = bootstrap_ci(values)
+    scale, unit = (100.0, "%") if metric == "success" else (1.0, "")
+    ours = f"{float(mean) * scale:.1f}{unit} [{float(low) * scale:.1f}, {float(high) * scale:.1f}]"
+    learned = f"{int((values > LEARNED).sum())} / {values.size}" if metric == "success" else "—"
+    return ours, learned
+
+
 def final_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
-    """Per condition: last evaluation's mean and 95% CI over seeds, beside the paper's value."""
+    """Per condition: last evaluation's mean and 95% CI over seeds and the seeds that learned, beside the
+    paper's value."""
     rows = []
     for run in exp.runs:
-        mean, low, high = bootstrap_ci(run.values[-1])
+        ours, learned = summarize(run.values[-1], run.metric)
         scale, unit = (100.0, "%") if run.metric == "success" else (1.0, "")
-        ours = (f"{float(mean) * scale:.1f}{unit} [{float(low) * scale:.1f}, {float(high) * scale:.1f}]")
         rows.append({"task": run.task, "condition": run.label, "metric": run.metric, "ours": ours,
-                     "seeds": run.seeds, "step": int(run.steps[-1]), "done": run.done,
+                     "learned": learned, "seeds": run.seeds, "step": int(run.steps[-1]), "done": run.done,
                      "paper": format_paper(paper_value(paper, run.task, run.condition), scale, unit)})
     return rows
+
+
+def _milestones(exp: ExperimentResults) -> list[int]:
+    """The experiment's milestone steps: from its experiment.json, else from its current definition."""
+    known = EXPERIMENTS.get(exp.name)
+    return list(exp.info.get("milestones") or (known.milestones if known else []))
+
+
+def milestone_rows(exp: ExperimentResults) -> list[dict[str, Any]]:
+    """Per condition and milestone step of the experiment (``info['milestones']``): the evaluation closest
+    to it (within `MILESTONE_TOLERANCE`), mean [95% CI] and seeds learned; '—' where the run has not reached
+    it."""
+    milestones = _milestones(exp)
+    rows = []
+    for run in exp.runs:
+        row = {"task": run.task, "condition": run.label}
+        for m in milestones:
+            distance = np.abs(run.steps - m)
+            if distance.size and distance.min() <= MILESTONE_TOLERANCE:
+                ours, learned = summarize(run.values[int(distance.argmin())], run.metric)
+                row[f"at{m}"] = f"{ours}; learned {learned}"
+            else:
+                row[f"at{m}"] = "—"
+        rows.append(row)
+    return rows if milestones else []
+
+
+def milestone_columns(exp: ExperimentResults) -> tuple[tuple[str, str], ...]:
+    """The (key, header) columns of `milestone_rows`."""
+    heads = [(f"at{m}", f"at {m:,} steps: mean [95% CI]; seeds > {LEARNED:.0%}") for m in _milestones(exp)]
+    return (("task", "task"), ("condition", "condition"), *heads)
 
 
 def measurement_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
@@ -354,7 +400,8 @@ def _md_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]
 
 
 FINAL_COLUMNS = (("task", "task"), ("condition", "condition"), ("ours", "ours: final mean [95% CI]"),
-                 ("seeds", "seeds"), ("step", "at step"), ("paper", "paper"))
+                 ("learned", f"seeds learned (> {LEARNED:.0%})"), ("seeds", "seeds"), ("step", "at step"),
+                 ("paper", "paper"))
 MEASURE_COLUMNS = (("task", "task"), ("measure", "measurement"), ("condition", "condition"),
                    ("ours", "ours: mean ± std"), ("seeds", "seeds"), ("paper", "paper"))
 
@@ -442,6 +489,7 @@ class Section:
     measures: list[dict[str, Any]]
     claims: list[dict[str, Any]]
     sources: list[dict[str, Any]]
+    milestones: list[dict[str, Any]] = field(default_factory=list)
 
 
 def build_sections(root: Path, videos: bool | None = None) -> list[Section]:
@@ -461,7 +509,7 @@ def build_sections(root: Path, videos: bool | None = None) -> list[Section]:
         tasks_run = set(exp.tasks)
         claims = [c for c in paper.get("claims", []) if c.get("task") in (None, *tasks_run)]
         sections.append(Section(exp, curves, heatmaps, final_rows(exp, paper), measurement_rows(exp, paper),
-                                claims, paper.get("sources", [])))
+                                claims, paper.get("sources", []), milestone_rows(exp)))
     return sections
 
 
@@ -501,6 +549,8 @@ def write_markdown(root: Path, sections: Sequence[Section]) -> Path:
             if unfinished:
                 lines += [f"{len(unfinished)} run(s) not finished yet (their latest evaluation is shown); "
                           f"re-run the same `ecorl run` command to complete them.", ""]
+        if s.milestones:
+            lines += _md_table(s.milestones, milestone_columns(s.exp)) + [""]
         if s.measures:
             lines += _md_table(s.measures, MEASURE_COLUMNS) + [""]
         if s.claims:
@@ -541,6 +591,8 @@ def write_html(root: Path, sections: Sequence[Section], videos: Sequence[Path]) 
             parts.append(f"<p><img src='{html.escape(img.relative_to(root).as_posix())}'></p>")
         if s.finals:
             parts.append(_html_table(s.finals, FINAL_COLUMNS))
+        if s.milestones:
+            parts.append(_html_table(s.milestones, milestone_columns(s.exp)))
         if s.measures:
             parts.append(_html_table(s.measures, MEASURE_COLUMNS))
         if s.claims:

@@ -71,8 +71,8 @@ def test_report_on_synthetic_runs(tmp_path):
     assert names == ["episodic-vs-reset-free_curves.png", "episodic-vs-reset-free_salad_heatmaps.png",
                      "index.html", "report.md"]
     md = (root / "report.md").read_text()
-    assert "| salad | static, episodic | 10.0% [" in md and "| 3 | 50000 | ≈ 12% (Fig. 2) |" in md
-    assert "| salad | static, non-episodic | 0.0% [0.0, 0.0] | 3 | 20000 | ≈ 0% (Fig. 2) |" in md
+    assert "| salad | static, episodic | 10.0% [" in md and "| 0 / 3 | 3 | 50000 | ≈ 12% (Fig. 2) |" in md
+    assert "| salad | static, non-episodic | 0.0% [0.0, 0.0] | 0 / 3 | 3 | 20000 | ≈ 0% (Fig. 2) |" in md
     assert "1 run(s) not finished yet" in md
     steps_read, values = read_metrics(root / exp.name / "salad" / "static-episodic" / "metrics.csv", "success")
     assert steps_read.tolist() == steps and values.shape == (10, 3)
@@ -88,3 +88,22 @@ def test_loose_videos_in_the_results_directory_are_shown(tmp_path):
     make_report(root, videos=False)
     page = (root / "index.html").read_text()
     assert "<h2>Videos</h2>" in page and "demo.mp4" in page
+
+
+def test_report_tabulates_milestones_with_the_seeds_that_learned(tmp_path):
+    exp = get_experiment("settings")
+    assert exp.milestones == (250_000, 500_000)
+    root = tmp_path / "results"
+    (root / exp.name).mkdir(parents=True)
+    (root / exp.name / EXPERIMENT_FILE).write_text(json.dumps({**exp.describe(), "budget": "paper"}))
+    steps = [245_200, 250_200, 255_200, 300_200]  # stops before 500 000
+    # seed 0 learns at the second evaluation, seed 1 hovers at the threshold, seed 2 never learns
+    success = lambda i, k: [0.9 if i >= 1 else 0.1, 0.2, 0.0][k]  # noqa: E731
+    _fake_run(root / exp.name / "salad" / "rf-lr3e-4", 3, steps, success)
+    make_report(root, videos=False)
+    md = (root / "report.md").read_text()
+    assert "at 250,000 steps: mean [95% CI]; seeds > 20%" in md
+    row = next(line for line in md.splitlines() if line.startswith("| salad | non-episodic, lr 3e-4 |")
+               and "learned" in line)
+    # the evaluation closest to 250 000 (250 200, not 245 200); 0.2 is not above the threshold
+    assert "| 36.7% [" in row and row.endswith("learned 1 / 3 | — |"), row
