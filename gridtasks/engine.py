@@ -74,6 +74,8 @@ def world_dtype(n: int) -> np.dtype:
             ("episode_step", np.int64),
             ("lifetime_step", np.int64),  # never reset: the clock of shaping schedules
             ("needs_reset", np.bool_),  # episode over; the vector env resets it on the next step
+            ("layout_rng", np.uint64),  # the stream's state when the current layout was drawn
+            ("replay_layout", np.bool_),  # the next reset redraws the current layout (replay_unsolved)
             ("stage_done", np.uint8, (MAX_STAGES,)),  # subgoals rewarded in the current cycle
             ("pickups", np.int64, (NC,)),  # since the last reset, per code (dispensed materials count)
             ("made", np.int64, (NC,)),  # products made since the last reset, per code
@@ -109,6 +111,7 @@ def rules_dtype(n: int) -> np.dtype:
             ("spawn_on_agent", np.bool_),  # new objects may grow under the agent (not on its start cell)
             ("count_carried", np.bool_),  # replenishment counts the carried object too
             ("waypoint_repeats", np.bool_),  # waypoint mode pays every pick-up / product, not once a cycle
+            ("replay_unsolved", np.int64),  # episodic: replay an unsolved layout within collections this long
             ("directed", np.int64, (NC,)),  # +1 steps toward the agent, -1 away, 0 never
             ("directed_prob", np.float64, (NC,)),  # probability of that directed step
             ("directed_by_shaping", np.uint8, (NC,)),  # directed probability is the shaping strength
@@ -603,8 +606,24 @@ def step_world(w, r, action: int, obs):
     w.lifetime_step += 1
     terminated = solved and not r.reset_free
     truncated = (not r.reset_free) and (not terminated) and w.episode_step >= r.horizon
+    if r.replay_unsolved > 0 and not r.reset_free and not terminated:
+        boundary = w.lifetime_step % r.replay_unsolved == 0  # a new collection starts with a fresh layout
+        w.replay_layout = truncated and not boundary
+        truncated = truncated or boundary
     observe(w, r, obs)
     return reward, terminated, truncated, solved, caught
+
+
+@nb.njit(cache=True)
+def begin_episode(w, r, obs) -> None:
+    """Reset a world: a fresh layout, or (the original's episodic rule, ``replay_unsolved``) the layout
+    of the episode that just ended unsolved, redrawn from the same point of the world's stream."""
+    if r.replay_unsolved > 0 and w.replay_layout:
+        w.rng = w.layout_rng
+    else:
+        w.layout_rng = w.rng
+    w.replay_layout = False
+    reset_world(w, r, obs)
 
 
 @nb.njit(cache=True)
@@ -618,7 +637,7 @@ def step_worlds(state, rules, actions, obs, rewards, terminated, truncated, solv
     for b in range(state.shape[0]):
         w = state[b]
         if autoreset and w.needs_reset:
-            reset_world(w, r, obs[b])
+            begin_episode(w, r, obs[b])
             rewards[b], terminated[b], truncated[b], solved[b], caught[b] = 0.0, False, False, False, False
             continue
         rew, term, trunc, solv, cau = step_world(w, r, actions[b], obs[b])
@@ -628,8 +647,8 @@ def step_worlds(state, rules, actions, obs, rewards, terminated, truncated, solv
 
 @nb.njit(cache=True)
 def reset_worlds(state, rules, mask, obs) -> None:
-    """Reset the worlds selected by ``mask`` (their RNG streams carry on)."""
+    """Reset the worlds selected by ``mask`` (their RNG streams carry on; see `begin_episode`)."""
     r = rules[0]
     for b in range(state.shape[0]):
         if mask[b]:
-            reset_world(state[b], r, obs[b])
+            begin_episode(state[b], r, obs[b])

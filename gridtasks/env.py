@@ -47,7 +47,21 @@ def check_choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
 
 
 @dataclass(frozen=True)
-class SpawnRules:
+class EpisodeRules:
+    """How episodic worlds restart (every grid task inherits these fields)."""
+
+    replay_unsolved: int = 0
+    """The original training loop's episodic reset rule: after an episode that ended unsolved the same
+    layout is played again, and every ``replay_unsolved`` steps of the world's clock (the original's
+    500-step collections) the episode is cut and a fresh layout drawn. 0 (default): a fresh layout every
+    episode. Ignored by reset-free worlds and off in the test MDP."""
+
+    def __post_init__(self) -> None:
+        check_positive_int("replay_unsolved", self.replay_unsolved, 0)
+
+
+@dataclass(frozen=True)
+class SpawnRules(EpisodeRules):
     """Where and how many new objects grow: the original code's rules by default, ours as options.
 
     Task parameter dataclasses whose objects grow or are replenished (salad, hunting, scavenging)
@@ -124,6 +138,8 @@ class GridTaskEnv(gym.Env):
         if isinstance(self.config, SpawnRules):
             r["spawn_on_agent"] = self.config.spawn_on_agent
             r["count_carried"] = self.config.count_carried
+        if isinstance(self.config, EpisodeRules):
+            r["replay_unsolved"] = self.config.replay_unsolved
         self.fill_rules(r)
         return rules
 
@@ -140,7 +156,9 @@ class GridTaskEnv(gym.Env):
         task parameters, the test MDP's knobs, the task's test overrides and its test horizon (the
         ``horizon`` default of its ``Config``, whatever episode length this env trains with)."""
         test_horizon = {f.name: f.default for f in dataclasses.fields(self.Config)}["horizon"]
-        return {**dataclasses.asdict(self.config), **TEST_MDP, "horizon": test_horizon, **self.test_overrides()}
+        replay = {"replay_unsolved": 0} if isinstance(self.config, EpisodeRules) else {}
+        return {**dataclasses.asdict(self.config), **TEST_MDP, "horizon": test_horizon, **replay,
+                **self.test_overrides()}
 
     @property
     def observation_split(self) -> tuple[int, int]:
@@ -166,6 +184,7 @@ class GridTaskEnv(gym.Env):
         if seed is not None or not self._seeded:
             self._state["rng"][0] = world_key(self.np_random)
             self._state["lifetime_step"][0] = 0
+            self._state["replay_layout"][0] = False
             self._seeded = True
         engine.reset_worlds(self._state, self.rules, np.ones(1, dtype=np.bool_), self._buffers.obs)
         return self._buffers.obs[0].copy(), self._info(False, False)
@@ -284,6 +303,7 @@ class GridTaskVectorEnv(VectorEnv):
         if keys is not None:
             self._state["rng"] = np.array(keys, dtype=np.uint64)
             self._state["lifetime_step"] = 0
+            self._state["replay_layout"] = False
             self._seeded = True
         engine.reset_worlds(self._state, self.rules, np.ones(self.num_envs, dtype=np.bool_), self._buffers.obs)
         return self._out(self._buffers.obs), self._info()

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from gridtasks.codes import Code
 from gridtasks.engine import code_mask
-from gridtasks.env import GridTaskEnv, check_positive_int
+from gridtasks.env import EpisodeRules, GridTaskEnv, check_positive_int
 
 WORKERS = (Code.METAL_WORKER, Code.WOOD_WORKER)
 MATERIALS = (Code.METAL, Code.WOOD)
@@ -15,7 +15,7 @@ DEPOT_CELL = (1, 1)
 
 
 @dataclass(frozen=True)
-class FactoryConfig:
+class FactoryConfig(EpisodeRules):
     """Parameters of the factory task."""
 
     grid_size: int = 8
@@ -26,6 +26,7 @@ class FactoryConfig:
     """Episode length of the episodic env (the test horizon)."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check_positive_int("grid_size", self.grid_size, 5)
         check_positive_int("max_material", self.max_material, 0)
         check_positive_int("horizon", self.horizon)

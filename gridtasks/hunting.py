@@ -37,6 +37,7 @@ class HuntingConfig(SpawnRules):
     """Episode length of the episodic env (the test horizon)."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check_positive_int("grid_size", self.grid_size, 5)
         check_positive_int("deer_count", self.deer_count, 0)
         check_positive_int("axe_count", self.axe_count, 0)

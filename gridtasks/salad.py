@@ -27,6 +27,7 @@ class SaladConfig(SpawnRules):
     """Add the appendix's three fixed inner walls (a 'W' maze; needs grid_size >= 8)."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check_positive_int("grid_size", self.grid_size, 5)
         check_positive_int("initial_count", self.initial_count, 0)
         check_positive_int("horizon", self.horizon)

@@ -27,6 +27,7 @@ class ScavengingConfig(SpawnRules):
     """Episode length of the episodic env (the test horizon)."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         check_positive_int("grid_size", self.grid_size, 5)
         check_positive_int("food_count", self.food_count, 0)
         check_positive_int("predator_lifespan", self.predator_lifespan)

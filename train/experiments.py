@@ -247,8 +247,8 @@ def _settings_conditions() -> tuple[Condition, ...]:
     """Salad p = 0.1: the settings where the paper's text and the released code disagree, one at a time.
 
     Listed in the order they run: the learning-rate sweep first (the paper tuned it), then the reward of
-    the released scripts, the episodic horizons of the text (200) and of the released script (100), and
-    the text's batch size."""
+    the released scripts, the episodic horizons of the text (200) and of the released script (100), the
+    released training loop's replay of unsolved layouts, and the text's batch size."""
     p = DYNAMIC_P["salad"]
     rf = {"dynamism": p, "reset_free": True, "lr": SETTINGS_LR}
     ep = {"dynamism": p, "reset_free": False, "lr": SETTINGS_LR}
@@ -259,6 +259,8 @@ def _settings_conditions() -> tuple[Condition, ...]:
         Condition("rf-waypoint", "non-episodic, waypoint reward (released scripts)", {**rf, "reward": "waypoint"}),
         Condition("ep-h200", "episodic, horizon 200 (paper text)", {**ep, "horizon": 200}),
         Condition("ep-h100", "episodic, horizon 100 (released script)", {**ep, "horizon": 100}),
+        Condition("ep-h100-replay", "episodic, horizon 100, unsolved layouts replayed (released loop)",
+                  {**ep, "horizon": 100, "env_kwargs": {"replay_unsolved": 500}}),
         Condition("rf-batch256", "non-episodic, batch 256 (paper text)", {**rf, "batch_size": 256}),
         Condition("ep-h100-waypoint", "episodic, horizon 100, waypoint reward",
                   {**ep, "horizon": 100, "reward": "waypoint"}),

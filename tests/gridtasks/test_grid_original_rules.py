@@ -8,6 +8,7 @@ original's farmable ``waypoint`` reward.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from fixtures import cells, make, world_from_map
 
@@ -207,3 +208,46 @@ def test_waypoint_is_a_reward_mode_of_every_grid_task():
     for cls in gridtasks.TASKS.values():
         env = cls(reward="waypoint")
         assert env.ecology.reward == "waypoint"
+
+
+# ---------------------------------------------------------------------------------------------- episodic replay
+
+
+def layouts_of_episodes(env, episodes: int) -> list[bytes]:
+    """Grid bytes at the start of each of ``episodes`` episodes of a vector env stepping 'interact' only
+    (so no episode is ever solved)."""
+    starts = [env.worlds["grid"][0].tobytes()]
+    while len(starts) < episodes:
+        *_, terminated, truncated, _ = env.step(np.full(1, INTERACT))
+        if truncated[0] or terminated[0]:
+            env.step(np.full(1, INTERACT))  # the autoreset step
+            starts.append(env.worlds["grid"][0].tobytes())
+    return starts
+
+
+def test_replay_unsolved_repeats_a_layout_within_a_collection_and_draws_anew_after_it():
+    from gridtasks.env import GridTaskVectorEnv
+
+    # horizon 10, collections of 35 steps: episodes end at world steps 10, 20, 30 (unsolved, replayed),
+    # then the collection boundary at 35 cuts the fourth and the fifth starts from a fresh layout
+    env = GridTaskVectorEnv(gridtasks.SaladEnv, 1, horizon=10, replay_unsolved=35)
+    env.reset(seed=3)
+    starts = layouts_of_episodes(env, 5)
+    assert starts[0] == starts[1] == starts[2] == starts[3]
+    assert starts[4] != starts[0]
+
+
+def test_without_replay_every_episode_draws_a_fresh_layout():
+    from gridtasks.env import GridTaskVectorEnv
+
+    env = GridTaskVectorEnv(gridtasks.SaladEnv, 1, horizon=10)
+    env.reset(seed=3)
+    starts = layouts_of_episodes(env, 4)
+    assert len(set(starts)) == 4
+
+
+def test_replay_is_off_in_the_test_mdp():
+    env = gridtasks.SaladEnv(replay_unsolved=500)
+    assert env.test_mdp_kwargs()["replay_unsolved"] == 0
+    with pytest.raises(ValueError, match="replay_unsolved"):
+        gridtasks.SaladEnv(replay_unsolved=-1)
