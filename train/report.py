@@ -35,6 +35,8 @@ from train.experiments import EXPERIMENTS
 from train.sweep import DONE_FILE, EXPERIMENT_FILE
 
 PAPER_DIR = Path(__file__).resolve().parent.parent / "assets" / "paper"
+REFERENCE_DIR = Path(__file__).resolve().parent.parent / "docs" / "results" / "paper"
+"""Shipped paper-budget runs (metrics only): a report draws an experiment's quick curves over them."""
 """Where the paper's transcribed numbers live (``assets/paper`` of the source tree)."""
 CI_LEVEL = 0.95
 BOOTSTRAP_SAMPLES = 2000
@@ -171,6 +173,16 @@ def load_experiment(path: Path) -> ExperimentResults:
     return result
 
 
+def load_reference(exp: ExperimentResults, reference_dir: Path | None = None) -> ExperimentResults | None:
+    """The shipped paper-budget runs of ``exp``'s experiment (under `REFERENCE_DIR` unless given), or None
+    (none shipped, or ``exp`` is them)."""
+    path = (reference_dir or REFERENCE_DIR) / exp.name
+    if not (path / EXPERIMENT_FILE).exists() or path.resolve() == exp.path.resolve():
+        return None
+    reference = load_experiment(path)
+    return reference if reference.runs else None
+
+
 # ---- the paper's numbers -------------------------------------------------------------------------------
 
 
@@ -219,8 +231,17 @@ def _pyplot():
     return plt
 
 
-def plot_curves(exp: ExperimentResults, paper: dict, out: Path) -> Path | None:
-    """One panel per task: mean and 95% CI over seeds of every condition; the paper's values dotted."""
+def _reference_label(reference: ExperimentResults) -> str:
+    seeds = sorted({r.seeds for r in reference.runs})
+    steps = max(int(r.steps[-1]) for r in reference.runs)
+    return f"shipped run, {'/'.join(map(str, seeds))} seeds × {steps / 1e6:.2g} M steps (dashed)"
+
+
+def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
+                reference: ExperimentResults | None = None) -> Path | None:
+    """One panel per task: mean and 95% CI over seeds of every condition, each seed as a thin line; the
+    paper's values dotted; the same conditions of a ``reference`` experiment (shipped paper-budget runs)
+    dashed, so a short run shows where its curves are heading."""
     tasks = [t for t in exp.tasks if any(r.task == t for r in exp.runs)]
     if not tasks:
         return None
@@ -248,6 +269,9 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path) -> Path | None:
             (line,) = ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
             ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
             handles.setdefault(run.label, line)
+            for old in (reference.runs if reference else []):
+                if old.task == task and old.condition == run.condition:
+                    ax.plot(old.steps, bootstrap_ci(old.values)[0], color=color, lw=1.2, ls="--")
             ref = paper_value(paper, task, run.condition)
             if ref is not None:
                 ax.axhline(ref["value"], color=color, ls=":", lw=1.3)
@@ -270,6 +294,10 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path) -> Path | None:
         from matplotlib.lines import Line2D
 
         handles["paper's final value (dotted; ≈, quoted in its text)"] = Line2D([], [], color="gray", ls=":")
+    if reference is not None:
+        from matplotlib.lines import Line2D
+
+        handles[_reference_label(reference)] = Line2D([], [], color="gray", ls="--")
     if handles:
         legend_cols = max(1, min(len(handles), int(width // 3.6)))
         fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=legend_cols,
@@ -490,6 +518,8 @@ class Section:
     claims: list[dict[str, Any]]
     sources: list[dict[str, Any]]
     milestones: list[dict[str, Any]] = field(default_factory=list)
+    reference: ExperimentResults | None = None
+    """Shipped paper-budget runs drawn dashed under this experiment's curves."""
 
 
 def build_sections(root: Path, videos: bool | None = None) -> list[Section]:
@@ -502,14 +532,15 @@ def build_sections(root: Path, videos: bool | None = None) -> list[Section]:
         if videos or (videos is None and exp.info.get("videos")):
             render_missing_videos(exp)
         figures = root / "figures"
-        curves = plot_curves(exp, paper, figures / f"{exp.name}_curves.png")
+        reference = load_reference(exp)
+        curves = plot_curves(exp, paper, figures / f"{exp.name}_curves.png", reference)
         heatmaps = []
         if exp.info.get("heatmaps"):
             heatmaps = [p for t in exp.tasks if (p := plot_heatmaps(exp, t, figures / f"{exp.name}_{t}_heatmaps.png"))]
         tasks_run = set(exp.tasks)
         claims = [c for c in paper.get("claims", []) if c.get("task") in (None, *tasks_run)]
         sections.append(Section(exp, curves, heatmaps, final_rows(exp, paper), measurement_rows(exp, paper),
-                                claims, paper.get("sources", []), milestone_rows(exp)))
+                                claims, paper.get("sources", []), milestone_rows(exp), reference))
     return sections
 
 
@@ -541,6 +572,9 @@ def write_markdown(root: Path, sections: Sequence[Section]) -> Path:
                   info.get("description", ""), "", _budget_line(s.exp), ""]
         if s.curves:
             lines += [f"![learning curves]({s.curves.relative_to(root).as_posix()})", ""]
+        if s.curves and s.reference:
+            lines += [f"Dashed: the mean of the {_reference_label(s.reference).replace(' (dashed)', '')} shipped in "
+                      f"`{_shown(s.reference.path)}` (re-draw it with `ecorl report {_shown(s.reference.path)}`).", ""]
         for h in s.heatmaps:
             lines += [f"![visitation heat-maps]({h.relative_to(root).as_posix()})", ""]
         if s.finals:

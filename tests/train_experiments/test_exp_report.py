@@ -107,3 +107,24 @@ def test_report_tabulates_milestones_with_the_seeds_that_learned(tmp_path):
                and "learned" in line)
     # the evaluation closest to 250 000 (250 200, not 245 200); 0.2 is not above the threshold
     assert "| 36.7% [" in row and row.endswith("learned 1 / 3 | — |"), row
+
+
+def test_quick_curves_are_drawn_over_the_shipped_paper_budget_runs(tmp_path, monkeypatch):
+    import train.report as report
+
+    exp = get_experiment("headline")
+    shipped, root = tmp_path / "paper", tmp_path / "results"
+    for base, steps, seeds in ((shipped, range(50_200, 1_000_201, 50_000), 4), (root, range(5_200, 30_201, 5_000), 2)):
+        (base / exp.name).mkdir(parents=True)
+        (base / exp.name / EXPERIMENT_FILE).write_text(json.dumps({**exp.describe(), "budget": "quick"}))
+        for cond in exp.conditions["salad"]:
+            _fake_run(base / exp.name / "salad" / cond.name, seeds, list(steps), lambda i, k: min(1.0, 0.01 * i))
+    monkeypatch.setattr(report, "REFERENCE_DIR", shipped)
+    quick = report.load_experiment(root / exp.name)
+    reference = report.load_reference(quick)
+    assert reference is not None and {r.condition for r in reference.runs} == {c.name for c in exp.conditions["salad"]}
+    assert report.load_reference(report.load_experiment(shipped / exp.name)) is None  # not drawn over itself
+    make_report(root, videos=False)
+    md = (root / "report.md").read_text()
+    assert "Dashed: the mean of the shipped run, 4 seeds × 1 M steps" in md
+    assert (root / "figures" / f"{exp.name}_curves.png").stat().st_size > 10_000
