@@ -20,10 +20,26 @@ is stepped alone or in a batch of 4 096.
 
 from __future__ import annotations
 
+import hashlib
+
 import numba as nb
 import numpy as np
+from numba.core import types as nb_types
 
 from gridtasks.codes import DISPENSES, GROUP, NUM_CODES, PASSABLE, PICKABLE, Code
+
+def _stable_record_mangling(self) -> tuple:
+    """Mangle a numpy record type by a digest of its layout, not by numba's per-process type counter.
+
+    numba names a compiled kernel after its argument types, and names a record type by a counter that
+    each process starts afresh. Kernels cached by two processes for two grid sizes (two record types) can
+    then carry the same symbol name, and a third process that loads both crashes inside LLVM
+    ("Didn't find key?", "free(): invalid pointer"). A digest of the record's layout is the same in every
+    process and differs between layouts."""
+    return type(self).__name__, (hashlib.blake2b(self.name.encode(), digest_size=8).hexdigest(),)
+
+
+nb_types.Record.mangling_args = property(_stable_record_mangling)
 
 VIEW = 5
 """Side of the egocentric, north-up observation window."""
