@@ -28,6 +28,7 @@ from numba.core import types as nb_types
 
 from gridtasks.codes import DISPENSES, GROUP, NUM_CODES, PASSABLE, PICKABLE, Code
 
+
 def _stable_record_mangling(self) -> tuple:
     """Mangle a numpy record type by a digest of its layout, not by numba's per-process type counter.
 

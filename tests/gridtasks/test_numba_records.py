@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -44,10 +45,7 @@ def test_different_grid_sizes_are_mangled_differently():
 def test_kernels_cached_by_separate_processes_load_together(tmp_path):
     # each size compiled (and cached) by its own process, then all loaded by one: crashed in LLVM before
     run = "import gridtasks\nfor n in ({}):\n    e = gridtasks.SaladEnv(grid_size=n); e.reset(seed=0); e.step(4)\n"
-    env = {"NUMBA_CACHE_DIR": str(tmp_path)}
-    import os
-
-    env = {**os.environ, **env}
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
     for n in (5, 6, 7):
         subprocess.run([sys.executable, "-c", run.format(f"{n},")], check=True, env=env, timeout=600)
     subprocess.run([sys.executable, "-c", run.format("7, 6, 5")], check=True, env=env, timeout=600)
