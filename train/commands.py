@@ -219,7 +219,7 @@ def add_video_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("task", choices=tuple(TASKS), metavar="TASK", help=f"one of: {', '.join(TASKS)}")
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--policy", type=Path, metavar="RUN_DIR_OR_FILE",
-                        help="run directory, its checkpoint.pkl, or a policy file (.npz) whose network acts")
+                        help="run directory, its checkpoint.npz, or a policy file (.npz) whose network acts")
     source.add_argument("--random", action="store_true", help="a uniform random policy")
     parser.add_argument("--out", type=Path, default=None,
                         help="output MP4 (default: RUN_DIR/video.mp4 for a run, else TASK-trained.mp4 or "
@@ -240,7 +240,7 @@ def add_video_parser(subparsers) -> argparse.ArgumentParser:
 
 def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
     """The policy to film (None: random) and the default output path, from the parsed arguments."""
-    from train.policy import POLICY_DIR, resolve_run_dir, shipped_policy
+    from train.policy import POLICY_DIR, is_policy_file, resolve_run_dir, shipped_policy
 
     if args.random:
         return None, Path(f"{args.task}-random.mp4")
@@ -250,7 +250,7 @@ def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
             print(f"ecorl video: no trained policy for {args.task} in {POLICY_DIR}; filming a random policy "
                   f"(pass --policy to film your own)", file=sys.stderr)
         return shipped, Path(f"{args.task}-{'trained' if shipped else 'random'}.mp4")
-    if args.policy.suffix == ".npz":
+    if is_policy_file(args.policy):
         return args.policy, Path(f"{args.task}-trained.mp4")
     return args.policy, resolve_run_dir(args.policy) / "video.mp4"
 
@@ -281,7 +281,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
         description="Write one seed's Q-network of a run (default: the seed with the best validation success "
                     "at the checkpoint's evaluation) with the run's configuration to a policy file (.npz, about "
                     "60 KB for a grid task) that 'ecorl video --policy' and 'ecorl evaluate' read.")
-    parser.add_argument("run", type=Path, metavar="RUN_DIR", help="run directory (or its checkpoint.pkl)")
+    parser.add_argument("run", type=Path, metavar="RUN_DIR", help="run directory (or its checkpoint.npz)")
     parser.add_argument("--out", type=Path, required=True, help="policy file to write (.npz)")
     parser.add_argument("--agent", type=int, default=None,
                         help="seed index to export (default: the best at the checkpoint's evaluation)")

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from train.checkpoint import CHECKPOINT_NAME
 from train.experiments import EXPERIMENTS
 from train.sweep import DONE_FILE, EXPERIMENT_FILE
 
@@ -369,7 +370,7 @@ def render_missing_videos(exp: ExperimentResults) -> list[Path]:
     made = []
     for run in exp.runs:
         target = run.path / "video.mp4"
-        if run.done and not target.exists() and (run.path / "checkpoint.pkl").exists():
+        if run.done and not target.exists() and (run.path / CHECKPOINT_NAME).exists():
             made.append(record_video(None, target, policy_path=run.path).path)
     return made
 

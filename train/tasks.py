@@ -110,3 +110,50 @@ def visit_cells(agent_pos: np.ndarray, shape: tuple[int, int], grid: bool) -> tu
     scaled = (pos + FOOD_COLLECTOR_HALF_SIZE) * (shape[0] / (2 * FOOD_COLLECTOR_HALF_SIZE))
     cells = np.clip(scaled.astype(np.int64), 0, shape[0] - 1)
     return cells[:, 1], cells[:, 0]
+
+
+# ---- environment state as data (for checkpoints) -------------------------------------------------------
+
+
+def env_state(env: gym.vector.VectorEnv) -> dict[str, Any]:
+    """The state of a training vector env as plain data: grid worlds by record field, or each food
+    collector's `get_state` and the vector env's autoreset flags."""
+    if hasattr(env, "worlds"):  # the grid tasks' batched engine: one structured record per world
+        worlds = env.worlds
+        return {"kind": "grid", "worlds": {name: worlds[name].copy() for name in worlds.dtype.names}}
+    if isinstance(env, gym.vector.SyncVectorEnv) and all(hasattr(e.unwrapped, "get_state") for e in env.envs):
+        return {"kind": "sync", "autoreset": np.asarray(env._autoreset_envs, dtype=bool).copy(),
+                "envs": [e.unwrapped.get_state() for e in env.envs]}
+    raise TypeError(f"{type(env).__name__} has no saveable state (grid worlds or get_state)")
+
+
+def restore_env_state(env: gym.vector.VectorEnv, state: dict[str, Any]) -> None:
+    """Put `env_state` output back into ``env`` (same task and number of worlds, already reset once)."""
+    kind = state.get("kind")
+    if kind == "grid" and hasattr(env, "worlds"):
+        worlds = env.worlds
+        saved = state["worlds"]
+        if set(saved) != set(worlds.dtype.names):
+            raise ValueError("the saved grid worlds do not have this task's fields")
+        for name in worlds.dtype.names:
+            _check_like(saved[name], worlds[name], f"world field {name!r}")
+        for name in worlds.dtype.names:
+            worlds[name] = saved[name]
+        return
+    if kind == "sync" and isinstance(env, gym.vector.SyncVectorEnv):
+        if len(state["envs"]) != len(env.envs):
+            raise ValueError(f"the checkpoint holds {len(state['envs'])} worlds, this run has {len(env.envs)}")
+        autoreset = np.asarray(state["autoreset"])
+        _check_like(autoreset, np.asarray(env._autoreset_envs, dtype=bool), "autoreset flags")
+        for e, saved in zip(env.envs, state["envs"]):
+            e.unwrapped.set_state(saved)
+        env._autoreset_envs = autoreset.copy()
+        return
+    raise ValueError(f"the checkpoint's environment state ({kind!r}) does not fit {type(env).__name__}")
+
+
+def _check_like(saved: Any, live: np.ndarray, what: str) -> None:
+    """Refuse a saved array whose shape or dtype differs from the live one."""
+    if not isinstance(saved, np.ndarray) or saved.shape != live.shape or saved.dtype != live.dtype:
+        got = f"{saved.dtype} {saved.shape}" if isinstance(saved, np.ndarray) else type(saved).__name__
+        raise ValueError(f"saved {what} is {got}, expected {live.dtype} {live.shape}")

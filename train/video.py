@@ -1,6 +1,6 @@
 """Rollout videos: a trained policy (or a uniform random one) in a task's test MDP or training env.
 
-The policy is one seed's network from a run directory, its ``checkpoint.pkl``, or a policy file
+The policy is one seed's network from a run directory, its ``checkpoint.npz``, or a policy file
 (`train.policy`); it acts epsilon-greedily (epsilon 0.05 by default).
 """
 

@@ -110,7 +110,7 @@ def test_resume_without_checkpoint_is_refused(tmp_path):
 
 @pytest.mark.parametrize("damage", ["flip", "truncate", "header"])
 def test_corrupt_checkpoint_is_refused(finished_run, damage):
-    path = finished_run / "checkpoint.pkl"
+    path = finished_run / "checkpoint.npz"
     data = bytearray(path.read_bytes())
     if damage == "flip":
         data[len(data) // 2] ^= 0xFF
@@ -149,6 +149,7 @@ def test_sigterm_stops_at_the_epoch_end_with_a_checkpoint(tmp_path, monkeypatch)
 
     monkeypatch.setattr(trainer, "train_epoch", epoch_then_signal)
     trainer.run()
+    trainer.close()  # releases the run directory's lock
     assert trainer.epoch == 2 and trainer.last_checkpoint == trainer.step == 600
     resumed = Trainer(SMALL.replace(steps=2000), tmp_path / "run", resume=True)
     assert resumed.step == 600 and resumed.epoch == 2
