@@ -122,7 +122,11 @@ def run_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> in
     if args.report:
         from train.report import make_report
 
-        for path in make_report(where):
+        try:
+            paths = make_report(where)
+        except (FileNotFoundError, ValueError) as err:
+            return _error("run", err)
+        for path in paths:
             print(path)
     else:
         print(f"next: ecorl report {where}", file=sys.stderr)
@@ -155,7 +159,7 @@ def report_command(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
 
     try:
         paths = make_report(args.dir, args.videos)
-    except FileNotFoundError as err:
+    except (FileNotFoundError, ValueError) as err:
         return _error("report", err)
     for path in paths:
         print(path)

@@ -22,6 +22,7 @@ import torch
 from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.config import TrainConfig
 from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
+from train.fileio import atomic_file
 from train.network import QNetwork
 from train.rundir import RunDir, RunDirError
 from train.tasks import get_task, probe
@@ -155,28 +156,66 @@ def save_policy(policy: Policy, out: str | Path) -> Path:
     out = Path(out)
     if not is_policy_file(out):
         raise ValueError(f"a policy file must end in .npz (and not be named {CHECKPOINT_NAME}), got {out}")
-    out.parent.mkdir(parents=True, exist_ok=True)
     header = {"format": POLICY_FORMAT, "config": policy.cfg.to_dict(), "seed": policy.seed, "meta": policy.meta}
-    np.savez_compressed(out, params=policy.params.numpy().astype(np.float32), header=np.array(json.dumps(header)))
+    with atomic_file(out) as f:
+        np.savez_compressed(f, params=policy.params.numpy().astype(np.float32), header=np.array(json.dumps(header)))
     return out
 
 
+MAX_POLICY_MEMBER_BYTES = {"params.npy": 256 << 20, "header.npy": 4 << 20}
+"""Largest uncompressed members a policy file may have (a grid policy's parameters take about 60 KB)."""
+
+
+def _not_a_policy(path: Path, why: str) -> ValueError:
+    return ValueError(f"{path} is not an ecorl policy file ({why}); write one with "
+                      f"'ecorl export RUN_DIR --out FILE.npz'")
+
+
+def _read_policy_arrays(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
+    """The parameters and the JSON header of a policy file, sizes checked before anything is read."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            sizes = {info.filename: info.file_size for info in zf.infolist()}
+            for name, limit in MAX_POLICY_MEMBER_BYTES.items():
+                if name not in sizes:
+                    raise _not_a_policy(path, f"no {name[:-4]!r} array")
+                if sizes[name] > limit:
+                    raise _not_a_policy(path, f"{name[:-4]!r} holds {sizes[name]} bytes, more than {limit}")
+        with np.load(path, allow_pickle=False) as data:
+            params, header = data["params"], data["header"]
+        if header.dtype.kind != "U" or header.ndim != 0:
+            raise _not_a_policy(path, f"header is {header.dtype} {header.shape}, not a JSON string")
+        header = json.loads(str(header))
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as err:
+        if isinstance(err, ValueError) and "not an ecorl policy file" in str(err):
+            raise
+        raise _not_a_policy(path, f"{type(err).__name__}: {err}".replace("\n", " ")) from None
+    if not isinstance(header, dict):
+        raise _not_a_policy(path, "header is not a JSON object")
+    return params, header
+
+
 def load_policy_file(path: str | Path) -> Policy:
-    """Read a policy file written by `save_policy`; refuse anything else with a reason."""
+    """Read a policy file written by `save_policy`; refuse anything else with a one-line reason (not an
+    archive, oversized arrays, parameters that are not finite float32, another format)."""
     path = Path(path)
     if not zipfile.is_zipfile(path):
-        raise ValueError(f"{path} is not an ecorl policy file (not an .npz archive); write one with "
-                         f"'ecorl export RUN_DIR --out FILE.npz'")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            params, header = data["params"], json.loads(str(data["header"]))
-    except (OSError, ValueError, KeyError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path} is not an ecorl policy file ({err}); write one with "
-                         f"'ecorl export RUN_DIR --out FILE.npz'") from err
+        raise _not_a_policy(path, "not an .npz archive")
+    params, header = _read_policy_arrays(path)
     if header.get("format") != POLICY_FORMAT:
-        raise ValueError(f"{path} has policy format {header.get('format')}, this ecorl reads {POLICY_FORMAT}")
-    cfg = TrainConfig.from_dict(header["config"])
-    return Policy(cfg, torch.from_numpy(params), int(header["seed"]), dict(header.get("meta", {})))
+        raise ValueError(f"{path} has policy format {header.get('format')!r}, this ecorl reads {POLICY_FORMAT}")
+    if params.dtype != np.float32 or params.ndim != 2 or params.shape[0] != 1:
+        raise _not_a_policy(path, f"parameters are {params.dtype} {params.shape}, expected float32 (1, P)")
+    if not np.isfinite(params).all():
+        raise ValueError(f"{path} holds {int((~np.isfinite(params)).sum())} NaN or infinite parameters; it cannot act "
+                         f"(re-export the policy from a healthy run)")
+    try:
+        cfg = TrainConfig.from_dict(header["config"])
+        seed = int(header["seed"])
+        meta = dict(header.get("meta", {}))
+    except (KeyError, TypeError, ValueError) as err:
+        raise _not_a_policy(path, f"bad header: {err}") from None
+    return Policy(cfg, torch.from_numpy(params), seed, meta)
 
 
 def is_policy_file(path: str | Path) -> bool:
