@@ -81,6 +81,9 @@ class RunDir:
             self._lock.acquire()
         except LockedError as err:
             raise RunDirError(str(err)) from None
+        for stale in self.path.iterdir():  # left by a killed writer; this process is now the only one
+            if is_temporary(stale.name) and stale.is_file():
+                stale.unlink(missing_ok=True)
 
     def unlock(self) -> None:
         """Release the run's lock."""

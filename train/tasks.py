@@ -10,7 +10,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from train.config import EnvConfig
+from train.config import CONFIG_OWNED_ENV_KWARGS, EnvConfig
 
 
 @dataclass(frozen=True)
@@ -71,14 +71,44 @@ class EnvInfo:
     """Keyword arguments of the evaluation MDP (`test_mdp_kwargs()`)."""
 
 
+def task_parameters(task: Task) -> tuple[str, ...]:
+    """The task parameters ``env_kwargs`` may set (the horizon and the ecology knobs belong to the config)."""
+    import dataclasses
+
+    from gymnasium.envs.registration import load_env_creator
+
+    entry = gym.spec(task.env_id).entry_point
+    env_class = load_env_creator(entry) if isinstance(entry, str) else entry
+    if hasattr(env_class, "Config"):
+        names = [f.name for f in dataclasses.fields(env_class.Config)]
+    else:
+        from foodcollector.params import PARAM_NAMES
+
+        names = list(PARAM_NAMES)
+    return tuple(n for n in names if n not in CONFIG_OWNED_ENV_KWARGS)
+
+
+def check_env_kwargs(task: Task, env_kwargs: dict[str, Any]) -> None:
+    """Raise ValueError (one line, listing the valid names) for an env kwarg the task does not take."""
+    valid = task_parameters(task)
+    unknown = sorted(set(env_kwargs) - set(valid))
+    if unknown:
+        raise ValueError(f"{task.name} has no parameter {unknown[0]!r} (--env-kwarg); its parameters are: "
+                         f"{', '.join(valid)}")
+
+
 def probe(task: Task, env_cfg: EnvConfig) -> EnvInfo:
     """Build one training environment and read its spaces, observation split and test MDP.
 
     The training ``horizon`` is left out of the probe: an environment's ``test_mdp_kwargs()`` may echo
     its own horizon, and the test MDP must keep the task's test horizon.
     """
+    check_env_kwargs(task, env_cfg.env_kwargs)
     kwargs = {k: v for k, v in env_cfg.env_make_kwargs.items() if k != "horizon"}
-    env = gym.make(task.env_id, **kwargs)
+    try:
+        env = gym.make(task.env_id, **kwargs)
+    except TypeError as err:  # a parameter of the wrong type: the task's own one-line message
+        raise ValueError(str(err)) from None
     try:
         base = env.unwrapped
         view_dim, inventory_dim = base.observation_split

@@ -66,10 +66,10 @@ class Trainer:
         self.rngs = {name: [s[name] for s in streams] for name in STREAMS}
         net = QNetwork(self.info.view_dim, self.info.obs_dim - self.info.view_dim, self.info.num_actions,
                        cfg.dqn.view_layers, cfg.dqn.inventory_layers, cfg.dqn.head_layers)
-        self.agent = DoubleDQN(net, cfg.dqn, self.rngs["init"])
-        self.rnd = RND(self.info.obs_dim, cfg.rnd, self.rngs["rnd"]) if cfg.rnd.rnd else None
         check_replay_memory(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
                             cfg.dqn.float_obs_dtype)
+        self.agent = DoubleDQN(net, cfg.dqn, self.rngs["init"])
+        self.rnd = RND(self.info.obs_dim, cfg.rnd, self.rngs["rnd"]) if cfg.rnd.rnd else None
         self.replay = Replay(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
                              cfg.dqn.float_obs_dtype)
         self.env = make_vector_env(self.task.env_id, self.num_agents, cfg.env.env_make_kwargs)
@@ -88,6 +88,9 @@ class Trainer:
             self.run_dir.prepare(self.cfg, resume)
             if resume:
                 self.load_state_dict(self.run_dir.load_checkpoint(self.cfg))
+                if self.step > self.cfg.total_steps:
+                    raise RunDirError(f"the run in {self.run_dir.path} stands at step {self.step}, beyond the "
+                                      f"{self.cfg.total_steps} steps asked for; ask for at least {self.step} steps")
                 self.resumed_from = self.step
                 self.run_dir.write_config(self.cfg)
                 self.run_dir.restore_metrics(self.rows)
@@ -225,7 +228,8 @@ class Trainer:
             self.start()
         if self.last_checkpoint < 0:
             self.save()
-        logger = _Logger(self.run_dir, cfg) if self.run_dir is not None else None
+        resumed = self.resumed_from >= 0
+        logger = _Logger(self.run_dir, cfg, self.step if resumed else None) if self.run_dir is not None else None
         with _stop_on_signal() as stop, _progress(cfg, self.step) as bar:
             while self.epoch < cfg.num_epochs and not stop.is_set():
                 before = self.step
@@ -389,7 +393,9 @@ def _stop_on_signal():
 class _Logger:
     """Writes metrics.csv, the visitation counts and (optionally) TensorBoard scalars at each evaluation."""
 
-    def __init__(self, run_dir: RunDir, cfg: TrainConfig) -> None:
+    def __init__(self, run_dir: RunDir, cfg: TrainConfig, resumed_at: int | None = None) -> None:
+        """``resumed_at``: the step a resumed run continues from; TensorBoard drops what a killed process
+        logged after it, so no step appears twice."""
         self.run_dir = run_dir
         self.writer = None
         if cfg.run.tensorboard:
@@ -398,7 +404,8 @@ class _Logger:
             except ImportError as err:
                 raise ImportError(f"--tensorboard needs the tensorboard package ({err}); install it with "
                                   f"pip install 'ecorl[tensorboard]', or drop --tensorboard") from err
-            self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"))
+            purge = None if resumed_at is None else resumed_at + 1
+            self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"), purge_step=purge)
 
     def log(self, trainer: Trainer, rows: list[dict[str, Any]]) -> None:
         """Persist the latest evaluation."""

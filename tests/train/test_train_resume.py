@@ -135,7 +135,7 @@ def test_mismatched_checkpoint_is_refused_naming_the_setting(finished_run, capsy
     with pytest.raises(RunDirError, match=r"dynamism: checkpoint has 0\.0, you asked for 0\.5"):
         Trainer(SMALL.replace(dynamism=0.5), finished_run, resume=True)
     code = main(["train", "salad", "--out", str(finished_run), "--resume", "--lr", "0.001", "--no-progress"])
-    assert code == 2 and "lr: checkpoint has 0.0001, you asked for 0.001" in capsys.readouterr().err
+    assert code == 2 and "with --lr 0.001: the run was made with 0.0001" in capsys.readouterr().err
 
 
 def test_sigterm_stops_at_the_epoch_end_with_a_checkpoint(tmp_path, monkeypatch):
