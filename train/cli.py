@@ -155,8 +155,8 @@ def add_train_command(subparsers) -> None:
     parser.add_argument("--out", type=Path, default=None,
                         help="run directory (default: runs/<task>-<knobs>-<seeds>)")
     parser.add_argument("--resume", action="store_true",
-                        help="continue the run in --out from its checkpoint, keeping its settings (runtime ones such as "
-                             "--steps, which may grow the run, can be given; others must match)")
+                        help="continue the run in --out from its checkpoint, keeping its settings (runtime ones "
+                             "such as --steps, which may grow the run, can be given; others must match)")
     add_config_arguments(parser)
     parser.set_defaults(handler=run_train)
 

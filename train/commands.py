@@ -99,6 +99,8 @@ def run_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> in
         jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps)
     except ValueError as err:
         parser.error(str(err))
+    if args.out.exists() and not args.out.is_dir():
+        return _error("run", f"--out {args.out} is a file, not a directory; choose a directory path")
     if args.dry_run:
         print_plan(jobs)
         return 0
@@ -352,8 +354,10 @@ SUBCOMMANDS = (add_run_parser, add_report_parser, add_measure_parser, add_video_
 
 def main(argv: Sequence[str] | None = None) -> int:
     """These subcommands as a stand-alone program (``python -m train.commands``)."""
-    parser = argparse.ArgumentParser(prog="ecorl", description="Ecological reinforcement learning: experiments.")
-    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    from train.cli import OneLineParser
+
+    parser = OneLineParser(prog="ecorl", description="Ecological reinforcement learning: experiments.")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser)
     subs = {add.__name__: add(subparsers) for add in SUBCOMMANDS}
     args = parser.parse_args(argv)
     sub = next(p for p in subs.values() if p.prog.split()[-1] == args.command)

@@ -162,7 +162,7 @@ def save_policy(policy: Policy, out: str | Path) -> Path:
     return out
 
 
-MAX_POLICY_MEMBER_BYTES = {"params.npy": 256 << 20, "header.npy": 4 << 20}
+MAX_POLICY_MEMBER_BYTES = {"params.npy": 64 << 20, "header.npy": 4 << 20}
 """Largest uncompressed members a policy file may have (a grid policy's parameters take about 60 KB)."""
 
 
