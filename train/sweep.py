@@ -109,7 +109,7 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
 def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequence[Job], out: str | Path) -> Path:
     """Record what this experiment directory holds, merged (under a lock) with earlier or concurrent runs of
     other task subsets."""
-    from train.fileio import FileLock
+    from train.fileio import FileLock, LockedError
 
     path = Path(out).resolve() / experiment.name / EXPERIMENT_FILE
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -119,7 +119,7 @@ def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequen
         try:
             lock.acquire()
             break
-        except Exception:
+        except LockedError:
             if time.monotonic() > deadline:
                 raise
             time.sleep(0.05)
@@ -202,8 +202,11 @@ def execute(job: Job) -> JobResult:
             return JobResult(job.name, "skipped")
         finished = _run_measurement(job) if job.is_measurement else _run_training(job)
         return JobResult(job.name, "done" if finished else "interrupted", time.perf_counter() - began)
-    except Exception:  # reported to the caller, which carries on with the other jobs
-        return JobResult(job.name, "failed", time.perf_counter() - began, traceback.format_exc())
+    except Exception as err:  # reported to the caller, which carries on with the other jobs
+        from train.rundir import RunDirError
+
+        why = " ".join(str(err).split()) if isinstance(err, RunDirError) else traceback.format_exc()
+        return JobResult(job.name, "failed", time.perf_counter() - began, why)
 
 
 def _run_training(job: Job) -> bool:
@@ -449,9 +452,9 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
     def on_result(result: JobResult) -> None:
         bar.update(1)
         if result.status == "failed":
-            bar.write(f"FAILED {result.job}:\n{result.error}")
+            bar.write(f"FAILED {result.job}: {result.error}", file=sys.stderr)
         elif result.status == "done":
-            bar.write(f"finished {result.job} in {result.seconds:.0f} s")
+            bar.write(f"finished {result.job} in {result.seconds:.0f} s", file=sys.stderr)
 
     if executor not in ("local", "ray"):
         bar.close()
