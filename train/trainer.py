@@ -302,6 +302,11 @@ class Trainer:
             for g, saved in zip(gens, state["rngs"][name], strict=True):
                 g.bit_generator.state = saved
         torch.set_rng_state(state["torch_rng"])
+        k = self.num_agents
+        for name, shape in (("visits", self.visits.shape), ("train_reward", (k,)), ("autoreset", (k,)),
+                            ("obs", None if state["obs"] is None else (k, self.info.obs_dim))):
+            if shape is not None and np.shape(state[name]) != shape:
+                raise ValueError(f"{name} has shape {np.shape(state[name])}, this run needs {shape}")
         self.step, self.epoch = int(state["step"]), int(state["epoch"])
         self.obs = None if state["obs"] is None else np.asarray(state["obs"], dtype=np.float32)
         self.autoreset = np.asarray(state["autoreset"], dtype=bool).copy()
