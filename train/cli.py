@@ -187,7 +187,7 @@ def run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     try:
         cfg, out = train_config(args)
         trainer = Trainer(cfg, out, resume=args.resume)
-    except (RunDirError, ValueError, TypeError, KeyError) as err:
+    except (RunDirError, ValueError, TypeError, KeyError, OSError) as err:
         return _fail(err)
     run = trainer.cfg.run
     where = f"resuming at step {trainer.step} of" if args.resume else "training"

@@ -100,7 +100,7 @@ def run_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> in
     except ValueError as err:
         parser.error(str(err))
     if args.out.exists() and not args.out.is_dir():
-        return _error("run", f"--out {args.out} is a file, not a directory; choose a directory path")
+        return _error("run", ValueError(f"--out {args.out} is a file, not a directory; choose a directory path"))
     if args.dry_run:
         print_plan(jobs)
         return 0
@@ -161,7 +161,7 @@ def report_command(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
 
     try:
         paths = make_report(args.dir, args.videos)
-    except (FileNotFoundError, ValueError) as err:
+    except (OSError, ValueError) as err:
         return _error("report", err)
     for path in paths:
         print(path)
@@ -197,6 +197,8 @@ def measure_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -
     """Measure each requested task, print the table and write it."""
     from train.sweep import measure_rows, write_measure_table
 
+    if args.out.exists() and not args.out.is_dir():
+        return _error("measure", ValueError(f"--out {args.out} is a file, not a directory; choose a directory path"))
     tasks = GRID_TASKS if args.task == "all" else (args.task,)
     for task in tasks:
         rows = measure_rows(args.measurement, task, args.seeds, args.steps, args.seed)
@@ -270,7 +272,7 @@ def video_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         video = record_video(args.task, args.out or default_out, policy_path=policy, steps=args.steps,
                              seed=args.seed, seed_index=args.agent, train_env=args.train_env, epsilon=args.epsilon,
                              episodes=args.episodes)
-    except (ValueError, FileNotFoundError, RunDirError) as err:
+    except (ValueError, OSError, RunDirError) as err:
         return _error("video", err)
     print(video.summary(), file=sys.stderr)
     print(video.path)
@@ -301,7 +303,7 @@ def export_command(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
 
     try:
         path = export_policy(args.run, args.out, args.agent)
-    except (ValueError, FileNotFoundError, RunDirError) as err:
+    except (ValueError, OSError, RunDirError) as err:
         return _error("export", err)
     meta = load_policy_file(path).meta
     success = meta.get("validation_success")
@@ -337,7 +339,7 @@ def evaluate_command(args: argparse.Namespace, parser: argparse.ArgumentParser) 
         policy = load_policy(args.policy, args.agent)
         results = {"policy": policy.evaluate(args.rollouts, args.epsilon),
                    "random": policy.evaluate(args.rollouts, epsilon=1.0)}
-    except (ValueError, FileNotFoundError, RunDirError) as err:
+    except (ValueError, OSError, RunDirError) as err:
         return _error("evaluate", err)
     eps = policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon
     print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP:")

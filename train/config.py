@@ -289,7 +289,9 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
-        """Rebuild a config from `to_dict` output (unknown keys raise)."""
+        """Rebuild a config from `to_dict` output (unknown keys, wrong types and bad values raise ValueError)."""
+        if not isinstance(data, dict) or not all(isinstance(data.get(n, {}), dict) for n in SECTIONS):
+            raise ValueError("a configuration must be an object of sections (env, dqn, rnd, eval, run)")
         parts = {}
         for name, section in SECTIONS.items():
             values = dict(data.get(name, {}))
@@ -300,7 +302,10 @@ class TrainConfig:
             for key, value in values.items():
                 if isinstance(value, list):
                     values[key] = tuple(value)
-            parts[name] = section(**values)
+            try:
+                parts[name] = section(**values)
+            except TypeError as err:  # e.g. a number where a schedule string belongs
+                raise ValueError(f"bad {name} setting: {err}") from None
         return cls(**parts)
 
     def replace(self, **flat: Any) -> TrainConfig:

@@ -142,7 +142,7 @@ class FileLock:
     def __del__(self) -> None:  # an abandoned holder (e.g. a trainer never closed) frees the lock
         try:
             self.release()
-        except OSError:
+        except Exception:  # at interpreter exit the kernel frees the lock anyway
             pass
 
     @property

@@ -170,7 +170,11 @@ def job_is_done(job: Job) -> bool:
         check_same_run(TrainConfig.from_dict(json.loads(saved.read_text())), cfg, saved)
     run = RunDir(job.run_dir)
     if not run.metrics_path.exists() and run.has_checkpoint():  # deleted by hand: rebuild it from the checkpoint
-        run.restore_metrics()
+        run.lock()
+        try:
+            run.restore_metrics()
+        finally:
+            run.unlock()
     return True
 
 

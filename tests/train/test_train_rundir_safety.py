@@ -225,3 +225,16 @@ def test_saving_a_policy_writes_no_temporary(policy, tmp_path):
     save_policy(load_policy_file(policy), tmp_path / "copy.npz")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["copy.npz", "good.npz"]
     assert os.path.getsize(tmp_path / "copy.npz") > 0
+
+
+def test_a_finished_sweep_run_rebuilds_its_deleted_metrics(tmp_path):
+    from train.experiments import get_experiment
+    from train.sweep import execute, plan
+
+    job = plan(get_experiment("rnd"), "smoke", tmp_path, ["factory"])[0]
+    assert execute(job).status == "done"
+    run = Path(job.run_dir)
+    rows = _rows(run)
+    (run / "metrics.csv").unlink()
+    assert execute(job).status == "skipped"
+    assert _rows(run) == rows
