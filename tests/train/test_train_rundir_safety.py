@@ -238,3 +238,14 @@ def test_a_finished_sweep_run_rebuilds_its_deleted_metrics(tmp_path):
     (run / "metrics.csv").unlink()
     assert execute(job).status == "skipped"
     assert _rows(run) == rows
+
+
+def test_the_checkpoint_is_plain_data_numpy_opens_without_pickle(finished):
+    with np.load(finished / "checkpoint.npz", allow_pickle=False) as data:
+        arrays = {name: data[name] for name in data.files}
+    assert not any(a.dtype.hasobject for a in arrays.values())
+    manifest = json.loads(arrays.pop("manifest").tobytes().decode())
+    assert manifest["format"] == 2 and manifest["state"]["step"] == 400
+    assert set(manifest["sha256"]) == set(arrays)
+    assert {"agent/online", "replay/obs", "env/worlds/grid", "torch_rng"} <= set(arrays)
+    assert manifest["state"]["rngs"]["explore"][0]["bit_generator"] == "PCG64"
