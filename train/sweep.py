@@ -323,14 +323,24 @@ def _parent_gone() -> bool:
     return _PARENT is not None and os.getppid() != _PARENT
 
 
+_INTERRUPTED = False
+"""In a local worker process: a job of this worker was stopped by a signal, so it takes no further job."""
+
+
 def _execute_unless_stopped(job: Job) -> JobResult:
     """`execute`, unless the sweep was interrupted before this job started; a worker whose sweep died
-    exits instead of taking (or reporting) a job."""
+    exits instead of taking (or reporting) a job.
+
+    A worker whose job a signal stopped takes no further job either: the kernel's parent-death signal can
+    arrive when the sweep's first thread dies, while its other threads (same pid) still live.
+    """
+    global _INTERRUPTED
     if _parent_gone():
         os._exit(0)
-    if _STOP is not None and _STOP.is_set():
+    if _INTERRUPTED or (_STOP is not None and _STOP.is_set()):
         return JobResult(job.name, "interrupted")
     result = execute(job)
+    _INTERRUPTED = _INTERRUPTED or result.status == "interrupted"
     if _parent_gone():
         os._exit(0)
     return result

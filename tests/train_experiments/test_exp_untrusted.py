@@ -202,7 +202,8 @@ def test_workers_stop_when_the_sweep_dies_and_start_nothing_queued(tmp_path, sig
             time.sleep(0.1)
     finally:
         os.killpg(sweep.pid, signal.SIGKILL) if sweep.poll() is None else None
+        log = sweep.stderr.read()
         sweep.stderr.close()
     started = [p.name for p in out.glob("rnd/factory/*") if (p / "config.json").exists()]
-    assert len(started) == 1, f"queued conditions started: {started}"
+    assert len(started) == 1, f"queued conditions started: {started}; the sweep said: {log}"
     assert (out / "rnd" / "factory" / started[0] / CHECKPOINT_NAME).exists()
