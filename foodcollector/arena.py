@@ -226,3 +226,40 @@ class Arena:
         hits = [h for h in self.space.segment_query(start, end, 0.0, RAY_FILTER) if h.alpha > 0.0 and (
                 h.shape.collision_type != Tag.WALL or (abs(h.point.x) <= lim and abs(h.point.y) <= lim))]
         return min(hits, key=lambda h: h.alpha) if hits else None
+
+    # ---- saving and restoring ------------------------------------------------------------------------
+
+    def get_state(self) -> dict:
+        """The agent body and the sphere mirrors as plain data (see `set_state`).
+
+        pymunk's contact cache (the impulses it warm-starts its solver with) is not part of it: an arena
+        restored into a fresh space starts its solver cold, which can change the next step's position by
+        a rounding error while the agent touches a wall. The trainer therefore continues from the restored
+        state after every checkpoint, so a resumed run and an uninterrupted one stay identical.
+        """
+        agent = self.agent
+        return {
+            "agent_position": [float(v) for v in agent.position], "agent_angle": float(agent.angle),
+            "agent_velocity": [float(v) for v in agent.velocity],
+            "agent_angular_velocity": float(agent.angular_velocity),
+            "sphere_body_pos": np.array([tuple(b.position) for b in self.sphere_bodies], dtype=np.float64),
+            "sphere_body_vel": np.array([tuple(b.velocity) for b in self.sphere_bodies], dtype=np.float64),
+        }
+
+    def set_state(self, state: dict) -> None:
+        """Restore `get_state` output into this arena (built fresh, nothing stepped yet)."""
+        agent = self.agent
+        agent.position = tuple(float(v) for v in state["agent_position"])
+        agent.angle = float(state["agent_angle"])
+        agent.velocity = tuple(float(v) for v in state["agent_velocity"])
+        agent.angular_velocity = float(state["agent_angular_velocity"])
+        self.space.reindex_shapes_for_body(agent)
+        pos, vel = np.asarray(state["sphere_body_pos"]), np.asarray(state["sphere_body_vel"])
+        if pos.shape != (len(self.sphere_bodies), 2) or vel.shape != pos.shape:
+            raise ValueError(f"saved sphere state has shape {pos.shape}, this arena has "
+                             f"{len(self.sphere_bodies)} spheres")
+        for body, p, v in zip(self.sphere_bodies, pos.tolist(), vel.tolist()):
+            body.position = p
+            if self.moving:
+                body.velocity = v
+            self.space.reindex_shapes_for_body(body)

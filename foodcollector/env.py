@@ -297,6 +297,42 @@ class FoodCollectorEnv(gym.Env):
         kwargs.update(TEST_MDP)
         return kwargs
 
+    # ---- saving and restoring ---------------------------------------------------------------------
+
+    def get_state(self) -> dict[str, Any]:
+        """Everything that determines what happens next, as plain data (numbers, lists, float arrays).
+
+        Agent body (position, angle, velocity), sphere arrays, counters, the random generator's state
+        and pymunk's contact cache; `set_state` on an environment made with the same arguments continues
+        exactly as this one would. Nothing here is code: it can be stored as JSON plus ``.npz`` arrays.
+        """
+        return {
+            "rng": self.np_random.bit_generator.state, "lifetime_step": self._lifetime_step,
+            "episode_step": self._episode_step, "green_eaten": self._green_eaten, "red_eaten": self._red_eaten,
+            "needs_reset": self._needs_reset, "ray_values": self._ray_values.copy(),
+            "sphere_pos": self.spheres.pos.copy(), "sphere_vel": self.spheres.vel.copy(),
+            "arena": self.arena.get_state(),
+        }
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        """Continue from `get_state` output: rebuild the pymunk space and restore every value."""
+        rng_state = state["rng"]
+        if rng_state.get("bit_generator") != "PCG64":
+            raise ValueError(f"saved random state is {rng_state.get('bit_generator')!r}, expected 'PCG64'")
+        rng = np.random.Generator(np.random.PCG64())
+        rng.bit_generator.state = rng_state
+        pos, vel = np.asarray(state["sphere_pos"], np.float64), np.asarray(state["sphere_vel"], np.float64)
+        if pos.shape != self.spheres.pos.shape or vel.shape != pos.shape:
+            raise ValueError(f"saved spheres have shape {pos.shape}, this environment has {self.spheres.pos.shape}")
+        self.np_random = rng
+        self._lifetime_step, self._episode_step = int(state["lifetime_step"]), int(state["episode_step"])
+        self._green_eaten, self._red_eaten = int(state["green_eaten"]), int(state["red_eaten"])
+        self._needs_reset = bool(state["needs_reset"])
+        self._ray_values = np.asarray(state["ray_values"], dtype=np.float32).copy()
+        self.spheres.pos[:], self.spheres.vel[:] = pos, vel
+        self.arena = Arena(self.params, self.spheres.green, moving=self.spheres.speed > 0)
+        self.arena.set_state(state["arena"])
+
     # ---- small, documented test hooks ---------------------------------------------------------------
 
     def place_agent(self, position: tuple[float, float], heading: float = 90.0,

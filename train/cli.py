@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from train.config import SECTIONS, TrainConfig, field_docs
+from train.config import SECTIONS, TrainConfig, _jsonable, field_docs
 from train.tasks import TASKS
 
 SKIPPED_FIELDS = ("task",)
@@ -76,16 +76,54 @@ def add_config_arguments(parser: argparse.ArgumentParser) -> None:
                 _add_field(group, f, hints[f.name], docs.get(f.name, ""))
 
 
-def config_from_args(args: argparse.Namespace) -> TrainConfig:
-    """The TrainConfig given by parsed arguments (defaults for every flag not given)."""
-    given = {key: value for key, value in vars(args).items()
-             if key in {f.name for s in SECTIONS.values() for f in dataclasses.fields(s)}}
+def given_settings(args: argparse.Namespace) -> dict[str, Any]:
+    """The config fields given on the command line (flags left out are absent), tuples for lists."""
+    names = {f.name for s in SECTIONS.values() for f in dataclasses.fields(s)}
+    given = {key: value for key, value in vars(args).items() if key in names}
     if "env_kwargs" in given:
         given["env_kwargs"] = dict(given["env_kwargs"])
     for key, value in given.items():
         if isinstance(value, list):
             given[key] = tuple(value)
-    return TrainConfig().replace(**given)
+    return given
+
+
+def config_from_args(args: argparse.Namespace) -> TrainConfig:
+    """The TrainConfig given by parsed arguments (defaults for every flag not given)."""
+    return TrainConfig().replace(**given_settings(args))
+
+
+def resume_config(out: Path, task: str, given: dict[str, Any]) -> TrainConfig:
+    """The configuration a resumed run continues with: the checkpoint's, with the given runtime settings.
+
+    A given setting that would change the run's results and differs from the checkpoint's is refused, and so
+    is a ``--steps`` below the step the run stands at (`RunDirError`, one line).
+    """
+    from train.rundir import RunDir, RunDirError
+
+    saved, step = RunDir(out).saved_config()
+    if task != saved.env.task:
+        raise RunDirError(f"--out {out} holds a {saved.env.task} run, not {task}; name {saved.env.task} to resume it")
+    identity = saved.identity()
+    runtime = {f.name for sec in SECTIONS.values() for f in dataclasses.fields(sec) if f.metadata.get("runtime")}
+    for key, value in given.items():
+        if key not in runtime and _jsonable(value) != identity[key]:
+            raise RunDirError(f"cannot resume {out} with {_flag(key)} {_shown(value)}: the run was made with "
+                              f"{_shown(identity[key])} (see {out / 'config.json'}); leave {_flag(key)} out to keep "
+                              f"it, or start a fresh run in another --out")
+    if given.get("steps", step) < step:
+        raise RunDirError(f"--steps {given['steps']} is below step {step}, where the run in {out} stands; give "
+                          f"--steps >= {step} (or leave it out to keep {saved.run.steps})")
+    return saved.replace(**{k: v for k, v in given.items() if k in runtime})
+
+
+def _shown(value: Any) -> str:
+    """A setting as the command line spells it."""
+    if isinstance(value, (list, tuple)):
+        return " ".join(map(str, value))
+    if isinstance(value, dict):
+        return " ".join(f"{k}={json.dumps(v)}" for k, v in value.items()) or "{}"
+    return str(value)
 
 
 def default_run_dir(cfg: TrainConfig) -> Path:
@@ -117,9 +155,28 @@ def add_train_command(subparsers) -> None:
     parser.add_argument("--out", type=Path, default=None,
                         help="run directory (default: runs/<task>-<knobs>-<seeds>)")
     parser.add_argument("--resume", action="store_true",
-                        help="continue the run in --out from its checkpoint (same settings required)")
+                        help="continue the run in --out from its checkpoint, keeping its settings (runtime ones "
+                             "such as --steps, which may grow the run, can be given; others must match)")
     add_config_arguments(parser)
     parser.set_defaults(handler=run_train)
+
+
+def _fail(err: BaseException) -> int:
+    """Print a user error of ``ecorl train`` as one line; the exit status 2 (argparse's, for bad input)."""
+    print(f"ecorl train: error: {' '.join(str(err).split())}", file=sys.stderr)
+    return 2
+
+
+def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
+    """The configuration and run directory ``ecorl train`` asks for (on --resume: the checkpoint's settings
+    with the given ones); raises ValueError or `RunDirError` with a one-line reason."""
+    cfg = config_from_args(args).replace(task=args.task)
+    out = args.out or default_run_dir(cfg)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} is a file, not a directory; choose a directory path")
+    if args.resume:
+        cfg = resume_config(out, args.task, {**given_settings(args), "task": args.task})
+    return cfg, out
 
 
 def run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
@@ -128,24 +185,20 @@ def run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from train.trainer import Trainer
 
     try:
-        cfg = config_from_args(args).replace(task=args.task)
-    except (ValueError, TypeError) as err:
-        parser.error(str(err))
-    out = args.out or default_run_dir(cfg)
-    try:
+        cfg, out = train_config(args)
         trainer = Trainer(cfg, out, resume=args.resume)
-    except (RunDirError, ValueError) as err:
-        print(f"ecorl train: error: {err}", file=sys.stderr)
-        return 2
+    except (RunDirError, ValueError, TypeError, KeyError, OSError) as err:
+        return _fail(err)
     run = trainer.cfg.run
-    print(f"ecorl train {cfg.env.task}: {run.seeds} seed(s), {trainer.cfg.total_steps} steps each, "
+    where = f"resuming at step {trainer.step} of" if args.resume else "training"
+    print(f"ecorl train {cfg.env.task}: {where} {trainer.cfg.total_steps} steps, {run.seeds} seed(s), "
           f"torch threads {run.threads}, run directory {out}", file=sys.stderr)
     try:
         rows = trainer.run()
     finally:
         trainer.close()
     if trainer.epoch < trainer.cfg.num_epochs:
-        print(f"stopped at step {trainer.step} with a checkpoint; continue with the same command plus "
+        print(f"stopped at step {trainer.step} with a checkpoint; continue with: ecorl train {cfg.env.task} "
               f"--resume --out {out}", file=sys.stderr)
         return 130
     if rows:
@@ -173,10 +226,17 @@ COMMANDS = (add_train_command, _experiment_commands, _demo_command)
 """Functions that each add one subcommand."""
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (``PROG: error: MESSAGE``, exit status 2), no usage."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``ecorl`` parser with every subcommand."""
-    parser = argparse.ArgumentParser(prog="ecorl", description="Ecological reinforcement learning, reproduced.")
-    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    parser = OneLineParser(prog="ecorl", description="Ecological reinforcement learning, reproduced.")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser)
     for add in COMMANDS:
         add(subparsers)
     for sub in subparsers.choices.values():  # each handler gets its own subcommand's parser

@@ -99,6 +99,8 @@ def run_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> in
         jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps)
     except ValueError as err:
         parser.error(str(err))
+    if args.out.exists() and not args.out.is_dir():
+        return _error("run", ValueError(f"--out {args.out} is a file, not a directory; choose a directory path"))
     if args.dry_run:
         print_plan(jobs)
         return 0
@@ -122,7 +124,11 @@ def run_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> in
     if args.report:
         from train.report import make_report
 
-        for path in make_report(where):
+        try:
+            paths = make_report(where)
+        except (FileNotFoundError, ValueError) as err:
+            return _error("run", err)
+        for path in paths:
             print(path)
     else:
         print(f"next: ecorl report {where}", file=sys.stderr)
@@ -155,7 +161,7 @@ def report_command(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
 
     try:
         paths = make_report(args.dir, args.videos)
-    except FileNotFoundError as err:
+    except (OSError, ValueError) as err:
         return _error("report", err)
     for path in paths:
         print(path)
@@ -191,6 +197,8 @@ def measure_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -
     """Measure each requested task, print the table and write it."""
     from train.sweep import measure_rows, write_measure_table
 
+    if args.out.exists() and not args.out.is_dir():
+        return _error("measure", ValueError(f"--out {args.out} is a file, not a directory; choose a directory path"))
     tasks = GRID_TASKS if args.task == "all" else (args.task,)
     for task in tasks:
         rows = measure_rows(args.measurement, task, args.seeds, args.steps, args.seed)
@@ -219,7 +227,7 @@ def add_video_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("task", choices=tuple(TASKS), metavar="TASK", help=f"one of: {', '.join(TASKS)}")
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--policy", type=Path, metavar="RUN_DIR_OR_FILE",
-                        help="run directory, its checkpoint.pkl, or a policy file (.npz) whose network acts")
+                        help="run directory, its checkpoint.npz, or a policy file (.npz) whose network acts")
     source.add_argument("--random", action="store_true", help="a uniform random policy")
     parser.add_argument("--out", type=Path, default=None,
                         help="output MP4 (default: RUN_DIR/video.mp4 for a run, else TASK-trained.mp4 or "
@@ -240,7 +248,7 @@ def add_video_parser(subparsers) -> argparse.ArgumentParser:
 
 def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
     """The policy to film (None: random) and the default output path, from the parsed arguments."""
-    from train.policy import POLICY_DIR, resolve_run_dir, shipped_policy
+    from train.policy import POLICY_DIR, is_policy_file, resolve_run_dir, shipped_policy
 
     if args.random:
         return None, Path(f"{args.task}-random.mp4")
@@ -250,7 +258,7 @@ def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
             print(f"ecorl video: no trained policy for {args.task} in {POLICY_DIR}; filming a random policy "
                   f"(pass --policy to film your own)", file=sys.stderr)
         return shipped, Path(f"{args.task}-{'trained' if shipped else 'random'}.mp4")
-    if args.policy.suffix == ".npz":
+    if is_policy_file(args.policy):
         return args.policy, Path(f"{args.task}-trained.mp4")
     return args.policy, resolve_run_dir(args.policy) / "video.mp4"
 
@@ -264,7 +272,7 @@ def video_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         video = record_video(args.task, args.out or default_out, policy_path=policy, steps=args.steps,
                              seed=args.seed, seed_index=args.agent, train_env=args.train_env, epsilon=args.epsilon,
                              episodes=args.episodes)
-    except (ValueError, FileNotFoundError, RunDirError) as err:
+    except (ValueError, OSError, RunDirError) as err:
         return _error("video", err)
     print(video.summary(), file=sys.stderr)
     print(video.path)
@@ -281,7 +289,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
         description="Write one seed's Q-network of a run (default: the seed with the best validation success "
                     "at the checkpoint's evaluation) with the run's configuration to a policy file (.npz, about "
                     "60 KB for a grid task) that 'ecorl video --policy' and 'ecorl evaluate' read.")
-    parser.add_argument("run", type=Path, metavar="RUN_DIR", help="run directory (or its checkpoint.pkl)")
+    parser.add_argument("run", type=Path, metavar="RUN_DIR", help="run directory (or its checkpoint.npz)")
     parser.add_argument("--out", type=Path, required=True, help="policy file to write (.npz)")
     parser.add_argument("--agent", type=int, default=None,
                         help="seed index to export (default: the best at the checkpoint's evaluation)")
@@ -295,7 +303,7 @@ def export_command(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
 
     try:
         path = export_policy(args.run, args.out, args.agent)
-    except (ValueError, FileNotFoundError, RunDirError) as err:
+    except (ValueError, OSError, RunDirError) as err:
         return _error("export", err)
     meta = load_policy_file(path).meta
     success = meta.get("validation_success")
@@ -331,7 +339,7 @@ def evaluate_command(args: argparse.Namespace, parser: argparse.ArgumentParser) 
         policy = load_policy(args.policy, args.agent)
         results = {"policy": policy.evaluate(args.rollouts, args.epsilon),
                    "random": policy.evaluate(args.rollouts, epsilon=1.0)}
-    except (ValueError, FileNotFoundError, RunDirError) as err:
+    except (ValueError, OSError, RunDirError) as err:
         return _error("evaluate", err)
     eps = policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon
     print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP:")
@@ -348,8 +356,10 @@ SUBCOMMANDS = (add_run_parser, add_report_parser, add_measure_parser, add_video_
 
 def main(argv: Sequence[str] | None = None) -> int:
     """These subcommands as a stand-alone program (``python -m train.commands``)."""
-    parser = argparse.ArgumentParser(prog="ecorl", description="Ecological reinforcement learning: experiments.")
-    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    from train.cli import OneLineParser
+
+    parser = OneLineParser(prog="ecorl", description="Ecological reinforcement learning: experiments.")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser)
     subs = {add.__name__: add(subparsers) for add in SUBCOMMANDS}
     args = parser.parse_args(argv)
     sub = next(p for p in subs.values() if p.prog.split()[-1] == args.command)

@@ -12,6 +12,7 @@ import ast
 import dataclasses
 import functools
 import inspect
+import math
 import textwrap
 from dataclasses import dataclass, field
 from typing import Any
@@ -20,6 +21,44 @@ from ecology import REWARD_MODES, VALIDATION_SEED_BASE, parse_schedule
 
 RUNTIME = {"runtime": True}
 """Field metadata marking settings that may change when a run is resumed (they do not alter its results)."""
+
+CONFIG_OWNED_ENV_KWARGS = {"dynamism": "use --dynamism", "shaping": "use --shaping",
+                           "reset_free": "use --reset-free or --episodic", "reward": "use --reward",
+                           "horizon": "use --horizon", "render_mode": "training renders nothing; film with ecorl video"}
+"""Environment arguments the config sets itself: env_kwargs may not name them (how to set each instead)."""
+
+
+def check_number(name: str, value: Any, low: float | None = None, high: float | None = None,
+                 low_open: bool = False) -> None:
+    """Raise ValueError unless ``value`` is a finite number in the range (``low_open``: low excluded)."""
+    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+    ok = ok and (low is None or (value > low if low_open else value >= low)) and (high is None or value <= high)
+    if not ok:
+        lo = "" if low is None else (f"> {low:g}" if low_open else f">= {low:g}")
+        span = f"in {'(' if low_open else '['}{low:g}, {high:g}]" if low is not None and high is not None else lo
+        raise ValueError(f"{name} must be a finite number {span}, got {value!r}")
+
+
+def check_int(name: str, value: Any, low: int = 1) -> None:
+    """Raise ValueError unless ``value`` is an integer >= ``low``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+
+
+def check_layers(name: str, value: Any, allow_empty: bool = False) -> None:
+    """Raise ValueError unless ``value`` is a (non-empty) tuple of positive integer widths."""
+    if not isinstance(value, tuple) or (not value and not allow_empty) or any(
+            isinstance(w, bool) or not isinstance(w, int) or w < 1 for w in value):
+        need = "one or more" if not allow_empty else "zero or more"
+        raise ValueError(f"{name} must be {need} layer widths >= 1, got {value!r}")
+
+
+def check_choices(section: Any) -> None:
+    """Raise ValueError for a field whose value is not one of its declared ``choices``."""
+    for f in dataclasses.fields(section):
+        choices = f.metadata.get("choices")
+        if choices and getattr(section, f.name) not in choices:
+            raise ValueError(f"{f.name} must be one of {', '.join(choices)}, got {getattr(section, f.name)!r}")
 
 
 @dataclass(frozen=True)
@@ -42,11 +81,23 @@ class EnvConfig:
     """Extra task parameters passed to the environment constructor (CLI: KEY=VALUE, the value read as JSON)."""
 
     def __post_init__(self) -> None:
-        parse_schedule(self.shaping)
+        if not isinstance(self.task, str) or not self.task:
+            raise ValueError(f"task must be a task name, got {self.task!r}")
+        check_number("dynamism", self.dynamism, 0.0, 1.0)
+        schedule = parse_schedule(self.shaping)
+        bad = [t for t in schedule.times if not math.isfinite(t)]
+        if bad:
+            raise ValueError(f"shaping schedule {self.shaping!r} has the breakpoint step {bad[0]}; every step must "
+                             f"be a finite number >= 0")
         if self.reward not in REWARD_MODES:
             raise ValueError(f"unknown reward mode {self.reward!r}; choose one of {', '.join(REWARD_MODES)}")
-        if self.horizon < 1:
-            raise ValueError(f"horizon must be a positive number of steps, got {self.horizon}")
+        check_int("horizon", self.horizon)
+        if not isinstance(self.env_kwargs, dict) or not all(isinstance(k, str) and k for k in self.env_kwargs):
+            raise ValueError(f"env_kwargs must map parameter names to values, got {self.env_kwargs!r}")
+        owned = sorted(set(self.env_kwargs) & set(CONFIG_OWNED_ENV_KWARGS))
+        if owned:
+            key = owned[0]
+            raise ValueError(f"env_kwargs may not set {key!r}: the config owns it ({CONFIG_OWNED_ENV_KWARGS[key]})")
 
     @property
     def env_make_kwargs(self) -> dict[str, Any]:
@@ -99,12 +150,23 @@ class DQNConfig:
     """Replay storage of real-valued observations (binary grid observations are always bit-packed)."""
 
     def __post_init__(self) -> None:
-        if self.batch_size < 1 or self.buffer_size < 2 or self.epoch_steps < 1:
-            raise ValueError("batch_size must be >= 1, buffer_size >= 2 and epoch_steps >= 1")
-        if self.warmup_steps < 2:
-            raise ValueError("warmup_steps must be >= 2 so that a transition exists before the first update")
-        if not (0.0 < self.tau <= 1.0 and 0.0 <= self.gamma <= 1.0):
-            raise ValueError(f"tau must lie in (0, 1] and gamma in [0, 1], got tau={self.tau}, gamma={self.gamma}")
+        check_number("lr", self.lr, 0.0, low_open=True)
+        check_number("adam_eps", self.adam_eps, 0.0, low_open=True)
+        check_number("gamma", self.gamma, 0.0, 1.0)
+        check_int("batch_size", self.batch_size)
+        check_int("buffer_size", self.buffer_size, 2)
+        check_number("tau", self.tau, 0.0, 1.0, low_open=True)
+        check_number("grad_clip", self.grad_clip, 0.0, low_open=True)
+        check_number("eps_start", self.eps_start, 0.0, 1.0)
+        check_number("eps_end", self.eps_end, 0.0, 1.0)
+        check_int("eps_decay_steps", self.eps_decay_steps, 0)
+        check_int("warmup_steps", self.warmup_steps, 2)  # a transition must exist before the first update
+        check_int("epoch_steps", self.epoch_steps)
+        check_int("updates_per_epoch", self.updates_per_epoch, 0)
+        check_layers("view_layers", self.view_layers)
+        check_layers("inventory_layers", self.inventory_layers)
+        check_layers("head_layers", self.head_layers, allow_empty=True)
+        check_choices(self)
 
     def epsilon(self, step: int) -> float:
         """The exploration epsilon after ``step`` environment steps (linear decay, then constant)."""
@@ -125,6 +187,11 @@ class RNDConfig:
     rnd_layers: tuple[int, ...] = (128, 128, 32)
     """Layer widths of the RND target and predictor MLPs (the last one is the embedding size)."""
 
+    def __post_init__(self) -> None:
+        check_number("rnd_weight", self.rnd_weight, 0.0)
+        check_number("rnd_lr", self.rnd_lr, 0.0, low_open=True)
+        check_layers("rnd_layers", self.rnd_layers)
+
 
 @dataclass(frozen=True)
 class EvalConfig:
@@ -138,6 +205,13 @@ class EvalConfig:
     """Validation rollouts per seed (default: the task's 100 validation layouts; food collector: 10 episodes)."""
     eval_horizon: int | None = None
     """Length of each validation rollout (default: the task's test horizon)."""
+
+    def __post_init__(self) -> None:
+        check_int("eval_every", self.eval_every)
+        check_number("eval_epsilon", self.eval_epsilon, 0.0, 1.0)
+        for name in ("eval_rollouts", "eval_horizon"):
+            if getattr(self, name) is not None:
+                check_int(name, getattr(self, name))
 
 
 @dataclass(frozen=True)
@@ -160,10 +234,11 @@ class RunConfig:
     """Show a progress bar."""
 
     def __post_init__(self) -> None:
-        if self.seeds < 1 or self.first_seed < 0:
-            raise ValueError(f"need seeds >= 1 and first_seed >= 0, got {self.seeds} and {self.first_seed}")
-        if self.threads < 1:
-            raise ValueError(f"threads must be >= 1, got {self.threads}")
+        check_int("seeds", self.seeds)
+        check_int("first_seed", self.first_seed, 0)
+        check_int("steps", self.steps)
+        check_int("checkpoint_every", self.checkpoint_every)
+        check_int("threads", self.threads)
         if self.first_seed + self.seeds > VALIDATION_SEED_BASE:
             raise ValueError(f"training seeds must stay below {VALIDATION_SEED_BASE} (the validation seeds)")
 
@@ -214,7 +289,9 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
-        """Rebuild a config from `to_dict` output (unknown keys raise)."""
+        """Rebuild a config from `to_dict` output (unknown keys, wrong types and bad values raise ValueError)."""
+        if not isinstance(data, dict) or not all(isinstance(data.get(n, {}), dict) for n in SECTIONS):
+            raise ValueError("a configuration must be an object of sections (env, dqn, rnd, eval, run)")
         parts = {}
         for name, section in SECTIONS.items():
             values = dict(data.get(name, {}))
@@ -225,7 +302,10 @@ class TrainConfig:
             for key, value in values.items():
                 if isinstance(value, list):
                     values[key] = tuple(value)
-            parts[name] = section(**values)
+            try:
+                parts[name] = section(**values)
+            except TypeError as err:  # e.g. a number where a schedule string belongs
+                raise ValueError(f"bad {name} setting: {err}") from None
         return cls(**parts)
 
     def replace(self, **flat: Any) -> TrainConfig:

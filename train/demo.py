@@ -58,16 +58,20 @@ def run_demo(out: Path, steps: int = 150, seed: int = 0) -> list[Path]:
     from tqdm import tqdm
 
     from ecology import write_video
+    from train.fileio import atomic_path, atomic_write
 
     out.mkdir(parents=True, exist_ok=True)
     written, stills = [], []
     for name, env in tqdm(demo_envs().items(), desc="rendering demo videos", unit="task"):
         frames = record_random_rollout(env, steps, seed)
-        written.append(write_video(frames, out / f"{name}.mp4", fps=env.metadata.get("render_fps", 8)))
+        with atomic_path(out / f"{name}.mp4") as tmp:
+            write_video(frames, tmp, fps=env.metadata.get("render_fps", 8))
+        written.append(out / f"{name}.mp4")
         stills.append(frames[len(frames) // 2])
-    picture = out / "tasks.png"
-    cv2.imwrite(str(picture), montage(stills)[:, :, ::-1])
-    return [*written, picture]
+    ok, png = cv2.imencode(".png", montage(stills)[:, :, ::-1])
+    if not ok:
+        raise RuntimeError("OpenCV could not encode tasks.png")
+    return [*written, atomic_write(out / "tasks.png", png.tobytes())]
 
 
 def add_demo_command(subparsers) -> None:

@@ -1,7 +1,7 @@
 """Trained policies: one seed's Q-network, read from a run or from a small policy file.
 
-A run's ``checkpoint.pkl`` holds every seed's networks, the optimiser, the replay buffer and the pickled
-environments (tens to hundreds of MB). A *policy file* (``.npz``) holds what acting needs: one seed's
+A run's ``checkpoint.npz`` holds every seed's networks, the optimiser, the replay buffer and the
+environments' state (tens to hundreds of MB). A *policy file* (``.npz``) holds what acting needs: one seed's
 online parameters, the run's `TrainConfig` (which fixes the network and the task) and a little provenance
 (source run, seed, step, validation success). ``ecorl export`` writes one; ``ecorl video`` reads either,
 and by default the policy shipped for the task in ``assets/policies/``.
@@ -19,10 +19,12 @@ from typing import Any
 import numpy as np
 import torch
 
+from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.config import TrainConfig
 from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
+from train.fileio import atomic_file
 from train.network import QNetwork
-from train.rundir import RunDir
+from train.rundir import RunDir, RunDirError
 from train.tasks import get_task, probe
 
 POLICY_DIR = Path(__file__).resolve().parents[1] / "assets" / "policies"
@@ -99,9 +101,11 @@ def resolve_run_dir(path: str | Path) -> Path:
     """The run directory of a run directory or of a checkpoint file inside one."""
     path = Path(path)
     run_dir = path.parent if path.is_file() else path
-    if not (run_dir / "checkpoint.pkl").exists() or not (run_dir / "config.json").exists():
-        raise FileNotFoundError(f"{path} is not a run directory with config.json and checkpoint.pkl "
-                                f"(nor a checkpoint.pkl inside one, nor a .npz policy file)")
+    if not (run_dir / CHECKPOINT_NAME).exists() and (run_dir / LEGACY_NAME).exists():
+        raise RunDirError(legacy_message(run_dir / LEGACY_NAME))
+    if not (run_dir / CHECKPOINT_NAME).exists() or not (run_dir / "config.json").exists():
+        raise FileNotFoundError(f"{path} is not a run directory with config.json and {CHECKPOINT_NAME} "
+                                f"(nor a {CHECKPOINT_NAME} inside one, nor a .npz policy file)")
     return run_dir
 
 
@@ -118,9 +122,14 @@ def validation_success(run_dir: Path, step: int | None = None) -> dict[int, floa
 
 
 def _load_run(path: str | Path) -> tuple[Path, dict[str, Any]]:
-    """The run directory of ``path`` and its verified checkpoint."""
+    """The run directory of ``path`` and its verified checkpoint (configuration, step and online networks)."""
     run_dir = resolve_run_dir(path)
-    return run_dir, RunDir(run_dir).load_checkpoint(run_config(run_dir))
+    state = RunDir(run_dir).read_checkpoint(keys=["agent/online"])
+    try:
+        TrainConfig.from_dict(state["config"])
+    except (KeyError, TypeError, ValueError) as err:
+        raise RunDirError(f"{run_dir / CHECKPOINT_NAME} holds an unusable configuration ({err})") from None
+    return run_dir, state
 
 
 def _policy_of(run_dir: Path, state: dict[str, Any], seed_index: int) -> Policy:
@@ -145,36 +154,80 @@ def policy_from_run(path: str | Path, seed_index: int = 0) -> Policy:
 def save_policy(policy: Policy, out: str | Path) -> Path:
     """Write ``policy`` as a policy file (float32 parameters, config and provenance as JSON)."""
     out = Path(out)
-    if out.suffix != ".npz":
-        raise ValueError(f"a policy file must end in .npz, got {out}")
-    out.parent.mkdir(parents=True, exist_ok=True)
+    if not is_policy_file(out):
+        raise ValueError(f"a policy file must end in .npz (and not be named {CHECKPOINT_NAME}), got {out}")
     header = {"format": POLICY_FORMAT, "config": policy.cfg.to_dict(), "seed": policy.seed, "meta": policy.meta}
-    np.savez_compressed(out, params=policy.params.numpy().astype(np.float32), header=np.array(json.dumps(header)))
+    with atomic_file(out) as f:
+        np.savez_compressed(f, params=policy.params.numpy().astype(np.float32), header=np.array(json.dumps(header)))
     return out
 
 
+MAX_POLICY_MEMBER_BYTES = {"params.npy": 64 << 20, "header.npy": 4 << 20}
+"""Largest uncompressed members a policy file may have (a grid policy's parameters take about 60 KB)."""
+
+
+def _not_a_policy(path: Path, why: str) -> ValueError:
+    return ValueError(f"{path} is not an ecorl policy file ({why}); write one with "
+                      f"'ecorl export RUN_DIR --out FILE.npz'")
+
+
+def _read_policy_arrays(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
+    """The parameters and the JSON header of a policy file, sizes checked before anything is read."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            sizes = {info.filename: info.file_size for info in zf.infolist()}
+            for name, limit in MAX_POLICY_MEMBER_BYTES.items():
+                if name not in sizes:
+                    raise _not_a_policy(path, f"no {name[:-4]!r} array")
+                if sizes[name] > limit:
+                    raise _not_a_policy(path, f"{name[:-4]!r} holds {sizes[name]} bytes, more than {limit}")
+        with np.load(path, allow_pickle=False) as data:
+            params, header = data["params"], data["header"]
+        if header.dtype.kind != "U" or header.ndim != 0:
+            raise _not_a_policy(path, f"header is {header.dtype} {header.shape}, not a JSON string")
+        header = json.loads(str(header))
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as err:
+        if isinstance(err, ValueError) and "not an ecorl policy file" in str(err):
+            raise
+        raise _not_a_policy(path, f"{type(err).__name__}: {err}".replace("\n", " ")) from None
+    if not isinstance(header, dict):
+        raise _not_a_policy(path, "header is not a JSON object")
+    return params, header
+
+
 def load_policy_file(path: str | Path) -> Policy:
-    """Read a policy file written by `save_policy`; refuse anything else with a reason."""
+    """Read a policy file written by `save_policy`; refuse anything else with a one-line reason (not an
+    archive, oversized arrays, parameters that are not finite float32, another format)."""
     path = Path(path)
     if not zipfile.is_zipfile(path):
-        raise ValueError(f"{path} is not an ecorl policy file (not an .npz archive); write one with "
-                         f"'ecorl export RUN_DIR --out FILE.npz'")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            params, header = data["params"], json.loads(str(data["header"]))
-    except (OSError, ValueError, KeyError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path} is not an ecorl policy file ({err}); write one with "
-                         f"'ecorl export RUN_DIR --out FILE.npz'") from err
+        raise _not_a_policy(path, "not an .npz archive")
+    params, header = _read_policy_arrays(path)
     if header.get("format") != POLICY_FORMAT:
-        raise ValueError(f"{path} has policy format {header.get('format')}, this ecorl reads {POLICY_FORMAT}")
-    cfg = TrainConfig.from_dict(header["config"])
-    return Policy(cfg, torch.from_numpy(params), int(header["seed"]), dict(header.get("meta", {})))
+        raise ValueError(f"{path} has policy format {header.get('format')!r}, this ecorl reads {POLICY_FORMAT}")
+    if params.dtype != np.float32 or params.ndim != 2 or params.shape[0] != 1:
+        raise _not_a_policy(path, f"parameters are {params.dtype} {params.shape}, expected float32 (1, P)")
+    if not np.isfinite(params).all():
+        raise ValueError(f"{path} holds {int((~np.isfinite(params)).sum())} NaN or infinite parameters; it cannot act "
+                         f"(re-export the policy from a healthy run)")
+    try:
+        cfg = TrainConfig.from_dict(header["config"])
+        seed = int(header["seed"])
+        meta = dict(header.get("meta", {}))
+    except (KeyError, TypeError, ValueError) as err:
+        raise _not_a_policy(path, f"bad header: {err}") from None
+    return Policy(cfg, torch.from_numpy(params), seed, meta)
+
+
+def is_policy_file(path: str | Path) -> bool:
+    """True for a path named like a policy file (``.npz``, but not a run's checkpoint)."""
+    path = Path(path)
+    return path.suffix == ".npz" and path.name != CHECKPOINT_NAME
 
 
 def load_policy(path: str | Path, seed_index: int = 0) -> Policy:
     """A policy file (``.npz``), or seed number ``seed_index`` of a run directory or checkpoint."""
     path = Path(path)
-    if path.suffix == ".npz":
+    if is_policy_file(path):
         if not path.is_file():
             raise FileNotFoundError(f"no policy file at {path}")
         return load_policy_file(path)

@@ -62,6 +62,12 @@ class Replay:
         self.size = np.zeros(num_agents, dtype=np.int64)
         self._row_offsets = np.arange(num_agents)[:, None] * capacity  # flat index of each agent's slot 0
 
+    @staticmethod
+    def bytes_needed(num_agents: int, capacity: int, obs_dim: int, binary: bool, float_dtype: str = "float16") -> int:
+        """Bytes of a full buffer of this shape (what `nbytes` will be), computed before allocating it."""
+        width = (obs_dim + 7) // 8 if binary else obs_dim * np.dtype(float_dtype).itemsize
+        return num_agents * capacity * (width + 1 + 4 + 1)  # observation, action, reward, flags
+
     @property
     def num_agents(self) -> int:
         """K."""
@@ -155,6 +161,11 @@ class Replay:
         if state["obs"].shape[0] != self.num_agents or state["obs"].shape[2] != self.obs.shape[2]:
             raise ValueError("the saved replay buffer does not match this run's agents or observation size")
         used = state["obs"].shape[1]
+        shapes = [state[n].shape for n in ("action", "reward", "flags")]
+        if used > self.capacity or any(shape != (self.num_agents, used) for shape in shapes):
+            raise ValueError("the saved replay buffer does not match this run's capacity")
+        if state["ptr"].shape != self.ptr.shape or state["size"].shape != self.size.shape:
+            raise ValueError("the saved replay pointers do not match this run's agents")
         for name in ("obs", "action", "reward", "flags"):
             getattr(self, name)[:, :used] = state[name]
         self.ptr[:] = state["ptr"]

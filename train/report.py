@@ -31,7 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from train.experiments import EXPERIMENTS
+from train.checkpoint import CHECKPOINT_NAME
+from train.experiments import BUDGETS, EXPERIMENTS
+from train.fileio import atomic_file, atomic_path, atomic_text, is_temporary
 from train.sweep import DONE_FILE, EXPERIMENT_FILE
 
 PAPER_DIR = Path(__file__).resolve().parent.parent / "assets" / "paper"
@@ -145,9 +147,43 @@ def find_experiment_dirs(root: Path) -> list[Path]:
     return sorted(found, key=lambda p: (order.index(p.name) if p.name in order else len(order), p.name))
 
 
+class ReportError(ValueError):
+    """A results directory the report refuses to read (the message says why)."""
+
+
+def trusted_info(path: Path) -> dict[str, Any]:
+    """experiment.json of ``path``, checked against the known experiments: its name, tasks and conditions
+    must be ones `train.experiments` defines (so no name can lead outside the results folder), and every
+    text shown comes from the known experiment, not from the file."""
+    try:
+        saved = json.loads((path / EXPERIMENT_FILE).read_text())
+    except ValueError as err:
+        raise ReportError(f"{path / EXPERIMENT_FILE} is not valid JSON ({err})") from None
+    name = saved.get("name") if isinstance(saved, dict) else None
+    if not isinstance(name, str) or name not in EXPERIMENTS:
+        raise ReportError(f"{path / EXPERIMENT_FILE} names an unknown experiment {name!r}; the report reads only "
+                          f"experiments written by ecorl run ({', '.join(EXPERIMENTS)})")
+    known = EXPERIMENTS[name]
+    tasks = saved.get("tasks", {})
+    if not isinstance(tasks, dict):
+        raise ReportError(f"{path / EXPERIMENT_FILE}: 'tasks' is not an object")
+    for task, conds in tasks.items():
+        allowed = {c.name for c in known.conditions.get(task, ())}
+        names = [c.get("name") if isinstance(c, dict) else c for c in conds] if isinstance(conds, list) else [conds]
+        bad = [n for n in names if n not in allowed]
+        if task not in known.conditions or bad:
+            what = f"task {task!r}" if task not in known.conditions else f"condition(s) {bad!r} of {task}"
+            raise ReportError(f"{path / EXPERIMENT_FILE} names {what}, which experiment {name!r} does not have")
+    info = known.describe()
+    info["tasks"] = {t: c for t, c in info["tasks"].items() if t in tasks}
+    budget = saved.get("budget")
+    info["budget"] = budget if budget in BUDGETS else "?"
+    return info
+
+
 def load_experiment(path: Path) -> ExperimentResults:
     """Read the runs (or measurements) of one experiment directory."""
-    info = json.loads((path / EXPERIMENT_FILE).read_text())
+    info = trusted_info(path)
     result = ExperimentResults(info["name"], path, info)
     for task, conds in info.get("tasks", {}).items():
         for cond in conds:
@@ -306,10 +342,17 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     title = (f"{exp.info.get('paper', '')}: {exp.info.get('title', exp.name)} (mean and {CI_LEVEL:.0%} bootstrap "
              f"CI over {'/'.join(map(str, seeds))} seeds; thin lines: single seeds)")
     fig.suptitle(textwrap.fill(title, int(width * 11)), fontsize=11)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    _save_figure(fig, out, dpi=110)
     return out
+
+
+def _save_figure(fig, out: Path, dpi: int) -> None:
+    """Write a figure as PNG atomically and close it."""
+    try:
+        with atomic_file(out) as f:
+            fig.savefig(f, format="png", dpi=dpi)
+    finally:
+        _pyplot().close(fig)
 
 
 def visit_snapshots(run_dir: Path, points: int = HEATMAP_POINTS) -> list[tuple[int, np.ndarray]]:
@@ -344,9 +387,7 @@ def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
     title = (f"{exp.info.get('paper', '')}: state visitation counts on {task} (cumulative, summed over seeds; "
              f"yellow = often, purple = rarely)")
     fig.suptitle(textwrap.fill(title, int(width * 13)), fontsize=9)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    _save_figure(fig, out, dpi=100)
     return out
 
 
@@ -439,19 +480,23 @@ MEASURE_COLUMNS = (("task", "task"), ("measure", "measurement"), ("condition", "
 
 def render_missing_videos(exp: ExperimentResults) -> list[Path]:
     """Render ``video.mp4`` (seed 0's final policy in the test MDP) for finished runs without one."""
+    from train.rundir import RunDirError
     from train.video import record_video
 
     made = []
     for run in exp.runs:
         target = run.path / "video.mp4"
-        if run.done and not target.exists() and (run.path / "checkpoint.pkl").exists():
-            made.append(record_video(None, target, policy_path=run.path).path)
+        if run.done and not target.exists() and (run.path / CHECKPOINT_NAME).exists():
+            try:
+                made.append(record_video(None, target, policy_path=run.path).path)
+            except (RunDirError, ValueError, FileNotFoundError) as err:
+                print(f"ecorl report: no video of {run.path}: {err}", file=sys.stderr)
     return made
 
 
 def find_videos(root: Path) -> list[Path]:
     """Every MP4 below ``root`` (run directories and the top level), sorted."""
-    return sorted(p for p in root.rglob("*.mp4") if ".partial" not in p.name)
+    return sorted(p for p in root.rglob("*.mp4") if ".partial" not in p.name and not is_temporary(p.name))
 
 
 @contextmanager
@@ -477,30 +522,43 @@ def web_copy(video: Path, out_dir: Path, root: Path) -> Path | None:
     if target.exists() and target.stat().st_mtime >= video.stat().st_mtime:
         return target
     cap = cv2.VideoCapture(str(video))
+    try:
+        with atomic_path(target) as tmp:
+            if not _transcode(cap, tmp):
+                raise _NoFrames
+    except _NoFrames:
+        return None
+    finally:
+        cap.release()
+    return target
+
+
+class _NoFrames(Exception):
+    """A video that could not be read or re-encoded (its web copy is skipped)."""
+
+
+def _transcode(cap, out: Path) -> bool:
+    """Re-encode every frame of an opened capture to a VP8 WebM at ``out``; False if nothing was written."""
+    import cv2
+
     fps = cap.get(cv2.CAP_PROP_FPS) or 8.0
     writer = None
-    tmp = target.with_name(target.stem + ".partial.webm")
     try:
         while True:
             ok, frame = cap.read()
             if not ok:
                 break
             if writer is None:
-                out_dir.mkdir(parents=True, exist_ok=True)
                 with _quiet_stderr():  # FFMPEG names its tag fallback on stderr; the file is fine
-                    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"VP80"), fps,
+                    writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"VP80"), fps,
                                              (frame.shape[1], frame.shape[0]))
                 if not writer.isOpened():
-                    return None
+                    return False
             writer.write(frame)
     finally:
-        cap.release()
         if writer is not None:
             writer.release()
-    if writer is None:
-        return None
-    tmp.replace(target)
-    return target
+    return writer is not None
 
 
 # ---- the report ----------------------------------------------------------------------------------------
@@ -594,9 +652,7 @@ def write_markdown(root: Path, sections: Sequence[Section]) -> Path:
         for src in s.sources:
             if src.get("note"):
                 lines += [f"*{src['figure']}: {src['note']}*", ""]
-    path = root / "report.md"
-    path.write_text("\n".join(lines).rstrip() + "\n")
-    return path
+    return atomic_text(root / "report.md", "\n".join(lines).rstrip() + "\n")
 
 
 def _html_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]) -> str:
@@ -638,9 +694,7 @@ def write_html(root: Path, sections: Sequence[Section], videos: Sequence[Path]) 
     if loose:
         parts.append("<h2>Videos</h2>" + "".join(_video_tag(root, v) for v in loose))
     parts.append("</body></html>")
-    path = root / "index.html"
-    path.write_text("\n".join(parts))
-    return path
+    return atomic_text(root / "index.html", "\n".join(parts))
 
 
 def _video_tag(root: Path, video: Path) -> str:
@@ -663,6 +717,9 @@ def make_report(root: str | Path, videos: bool | None = None) -> list[Path]:
     root = Path(root).resolve()
     if not root.is_dir():
         raise FileNotFoundError(f"no results directory {root}")
+    for name in ("figures", "report.md", "index.html"):
+        if (root / name).is_symlink():
+            raise ReportError(f"{root / name} is a symbolic link; the report writes only inside {root}: remove it")
     sections = build_sections(root, videos)
     if not sections:
         raise FileNotFoundError(f"{root} holds no experiment results ({EXPERIMENT_FILE} not found in it or in its "

@@ -2,93 +2,44 @@
 
 Layout::
 
-    config.json      the resolved TrainConfig
+    config.json      the resolved TrainConfig (rewritten when the run is resumed)
     metrics.csv      one row per evaluation and seed (`METRIC_COLUMNS`)
     visits.npy       (seeds, rows, cols) lifetime visitation counts, [y, x], as of the latest evaluation
     visits/STEP.npy  the same, kept at every evaluation (for heat-maps over training)
-    checkpoint.pkl   everything needed to continue the run exactly (see `save_checkpoint`)
+    checkpoint.npz   everything needed to continue the run exactly, as data only (`train.checkpoint`)
+    .lock            advisory lock of the process writing the run (its pid while held)
     tensorboard/     optional TensorBoard logs
+
+See ``docs/run-directories.md``.
 """
 
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import json
-import os
-import pickle
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any
 
 import numpy as np
 
+from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, CheckpointError, legacy_message, read_checkpoint
+from train.checkpoint import write_checkpoint as _write_checkpoint
 from train.config import TrainConfig
+from train.fileio import FileLock, LockedError, atomic_file, atomic_write, is_temporary
+
+__all__ = ["METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write", "check_same_run"]
 
 METRIC_COLUMNS = ("step", "seed", "epsilon", "loss", "success", "return", "train_reward", "steps_per_s")
 """Columns of metrics.csv. ``return`` is the mean validation return; ``train_reward`` the summed training
 reward since the previous evaluation; ``steps_per_s`` environment steps per second per seed."""
 
-CHECKPOINT_MAGIC = b"ECORLCK1"
-"""First bytes of a checkpoint file; a SHA-256 of the payload follows, then the pickled payload."""
-DIGEST_SIZE = 32
-"""Bytes of a SHA-256 digest."""
+LOCK_NAME = ".lock"
+"""The lock file of a run directory (held by the one process that writes the run)."""
 
 
 class RunDirError(RuntimeError):
     """A run directory cannot be used as asked (the message says why and how to fix it)."""
-
-
-def _fsync_dir(path: Path) -> None:
-    """Make a rename inside ``path`` durable."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-@contextmanager
-def atomic_file(path: Path) -> Iterator[BinaryIO]:
-    """Open a temporary file that replaces ``path`` (after fsync) only if the block completes.
-
-    A crash at any point leaves either the old file or the new one, never a mix.
-    """
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        yield f
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    _fsync_dir(path.parent)
-
-
-def atomic_write(path: Path, *chunks: bytes | memoryview) -> None:
-    """Write ``chunks`` to ``path`` atomically (see `atomic_file`)."""
-    with atomic_file(path) as f:
-        for chunk in chunks:
-            f.write(chunk)
-
-
-def _sha256_rest(f: BinaryIO, chunk: int = 1 << 22) -> bytes:
-    """SHA-256 of the rest of an open file, read in chunks."""
-    digest = hashlib.sha256()
-    while block := f.read(chunk):
-        digest.update(block)
-    return digest.digest()
-
-
-class _HashingWriter:
-    """A write-only file wrapper that hashes what passes through it."""
-
-    def __init__(self, file: BinaryIO) -> None:
-        self.file, self.hash = file, hashlib.sha256()
-
-    def write(self, data) -> int:
-        self.hash.update(data)
-        return self.file.write(data)
 
 
 class RunDir:
@@ -96,55 +47,109 @@ class RunDir:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        self._lock = FileLock(self.path / LOCK_NAME, f"run directory {self.path}",
+                              "wait for it to finish (or stop it), or choose another --out")
 
     config_path = property(lambda self: self.path / "config.json")
     metrics_path = property(lambda self: self.path / "metrics.csv")
-    checkpoint_path = property(lambda self: self.path / "checkpoint.pkl")
+    checkpoint_path = property(lambda self: self.path / CHECKPOINT_NAME)
+    legacy_checkpoint_path = property(lambda self: self.path / LEGACY_NAME)
     visits_path = property(lambda self: self.path / "visits.npy")
 
-    def prepare(self, cfg: TrainConfig, resume: bool) -> None:
-        """Check the directory fits the request; on a fresh start create it and write config.json."""
-        exists = self.path.exists() and any(self.path.iterdir())
-        if resume:
-            if not self.checkpoint_path.exists():
-                raise RunDirError(f"cannot resume: {self.path} holds no checkpoint.pkl. Start a fresh run "
-                                  f"(drop --resume) with an empty or new --out directory.")
+    def has_checkpoint(self) -> bool:
+        """True if the directory holds a checkpoint (raises `RunDirError` for a pickled, format-1 one)."""
+        if self.checkpoint_path.exists():
+            return True
+        if self.legacy_checkpoint_path.exists():
+            raise RunDirError(legacy_message(self.legacy_checkpoint_path))
+        return False
+
+    def is_empty(self) -> bool:
+        """True if the directory is missing or holds nothing but its lock and interrupted temporaries."""
+        if not self.path.exists():
+            return True
+        return all(p.name == LOCK_NAME or is_temporary(p.name) for p in self.path.iterdir())
+
+    def lock(self) -> None:
+        """Take the run's lock for the rest of this process (or until `unlock`); refuse if another holds it."""
+        if self._lock.held:
             return
-        if exists:
+        if self.path.exists() and not self.path.is_dir():
+            raise RunDirError(f"--out {self.path} is a file, not a directory; choose a directory path")
+        self.path.mkdir(parents=True, exist_ok=True)
+        try:
+            self._lock.acquire()
+        except LockedError as err:
+            raise RunDirError(str(err)) from None
+        for stale in self.path.iterdir():  # left by a killed writer; this process is now the only one
+            if is_temporary(stale.name) and stale.is_file():
+                stale.unlink(missing_ok=True)
+
+    def unlock(self) -> None:
+        """Release the run's lock."""
+        self._lock.release()
+
+    def prepare(self, cfg: TrainConfig, resume: bool) -> None:
+        """Check the directory fits the request and lock it; on a fresh start write config.json."""
+        if self.path.exists() and not self.path.is_dir():
+            raise RunDirError(f"--out {self.path} is a file, not a directory; choose a directory path")
+        if resume:
+            if not self.path.is_dir() or not self.has_checkpoint():
+                raise RunDirError(f"cannot resume: {self.path} holds no {CHECKPOINT_NAME}. Start a fresh run "
+                                  f"(drop --resume) with an empty or new --out directory.")
+            self.lock()
+            return
+        if not self.is_empty():
             raise RunDirError(f"run directory {self.path} is not empty. Pass --resume to continue the run "
                               f"it holds, or choose another --out (or delete the directory) to start afresh.")
-        self.path.mkdir(parents=True, exist_ok=True)
+        self.lock()
+        if not self.is_empty():  # another process filled it between the check and the lock
+            raise RunDirError(f"run directory {self.path} is not empty; choose another --out")
+        self.write_config(cfg)
+
+    def write_config(self, cfg: TrainConfig) -> None:
+        """(Re)write config.json with ``cfg``."""
         atomic_write(self.config_path, (json.dumps(cfg.to_dict(), indent=2) + "\n").encode())
 
     def save_checkpoint(self, payload: dict[str, Any]) -> None:
-        """Pickle ``payload`` after a header (magic, SHA-256 of the pickle) and write it atomically.
+        """Write ``payload`` as a data-only checkpoint (`train.checkpoint`), atomically."""
+        _write_checkpoint(self.checkpoint_path, payload)
 
-        The pickle streams straight into the file (no in-memory copy of the replay buffer); the digest
-        is written into the header once the pickle is complete.
-        """
-        with atomic_file(self.checkpoint_path) as f:
-            f.write(CHECKPOINT_MAGIC + bytes(DIGEST_SIZE))
-            writer = _HashingWriter(f)
-            pickle.dump(payload, writer, protocol=pickle.HIGHEST_PROTOCOL)
-            f.seek(len(CHECKPOINT_MAGIC))
-            f.write(writer.hash.digest())
+    def read_checkpoint(self, keys: list[str] | None = None) -> dict[str, Any]:
+        """The verified checkpoint (only the arrays in ``keys`` when given); `RunDirError` if unusable."""
+        if not self.has_checkpoint():
+            raise RunDirError(f"{self.path} holds no {CHECKPOINT_NAME}; it is not a run directory of ecorl "
+                              f"(or the run never reached its first checkpoint)")
+        try:
+            return read_checkpoint(self.checkpoint_path, keys)
+        except CheckpointError as err:
+            raise RunDirError(str(err)) from None
+
+    def saved_config(self) -> tuple[TrainConfig, int]:
+        """The checkpoint's configuration and the step the run stands at (reads no arrays)."""
+        state = self.read_checkpoint(keys=[])
+        try:
+            return TrainConfig.from_dict(state["config"]), int(state["step"])
+        except (KeyError, TypeError, ValueError) as err:
+            raise RunDirError(f"{self.checkpoint_path} holds an unusable configuration ({err}); start a fresh "
+                              f"run in another --out directory") from None
 
     def load_checkpoint(self, cfg: TrainConfig) -> dict[str, Any]:
         """Read and verify the checkpoint; refuse a corrupt one or one made with different settings."""
-        path = self.checkpoint_path
-        with open(path, "rb") as f:
-            magic, digest = f.read(len(CHECKPOINT_MAGIC)), f.read(DIGEST_SIZE)
-            if magic != CHECKPOINT_MAGIC or len(digest) != DIGEST_SIZE:
-                raise RunDirError(f"{path} is not an ecorl checkpoint (bad header). Restore it or start a "
-                                  f"fresh run in another --out directory.")
-            body_start = f.tell()
-            if _sha256_rest(f) != digest:
-                raise RunDirError(f"{path} is corrupt (checksum mismatch: truncated or altered). It cannot be "
-                                  f"resumed; restore it from a backup or start a fresh run in another --out.")
-            f.seek(body_start)
-            payload = pickle.load(f)
-        check_same_run(TrainConfig.from_dict(payload["config"]), cfg, path)
+        payload = self.read_checkpoint()
+        check_same_run(TrainConfig.from_dict(payload["config"]), cfg, self.checkpoint_path)
         return payload
+
+    def restore_metrics(self, rows: list[dict[str, Any]] | None = None) -> bool:
+        """Rebuild a deleted metrics.csv from the checkpoint's rows; True if it was rebuilt."""
+        if self.metrics_path.exists():
+            return False
+        if rows is None:
+            rows = self.read_checkpoint(keys=[]).get("rows", [])
+        if not rows:
+            return False
+        self.write_metrics(rows)
+        return True
 
     def write_metrics(self, rows: list[dict[str, Any]]) -> None:
         """Rewrite metrics.csv with ``rows`` (atomically, so a resumed run never shows stale rows)."""

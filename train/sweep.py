@@ -21,23 +21,29 @@ import os
 import shutil
 import signal
 import sys
+import threading
 import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from train.checkpoint import CHECKPOINT_NAME
 from train.config import TrainConfig
 from train.experiments import Experiment, job_config
+from train.fileio import atomic_text, die_with_parent, is_temporary
 
 DONE_FILE = "done.json"
 """Marker of a finished run (atomically written, with its step budget)."""
 EXPERIMENT_FILE = "experiment.json"
 """Description of an experiment directory, written by `run_experiment`."""
-TRAINER_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "checkpoint.pkl.tmp", "config.json.tmp",
-                 "metrics.csv.tmp", "visits.npy.tmp", DONE_FILE + ".tmp")
-"""What a run that never reached its first checkpoint may have left; cleared before it starts again."""
+TRAINER_FILES = ("config.json", "metrics.csv", "visits.npy", "visits")
+"""What a run that never reached its first checkpoint may have left (besides its lock and interrupted
+temporaries, `train.fileio.is_temporary`); cleared before it starts again."""
+EXPERIMENT_LOCK = ".experiment.lock"
+"""Lock file serialising updates of experiment.json by concurrent ``ecorl run`` processes."""
 
 
 @dataclass(frozen=True)
@@ -101,26 +107,44 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
 
 
 def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequence[Job], out: str | Path) -> Path:
-    """Record what this experiment directory holds (merged with earlier runs of other task subsets)."""
+    """Record what this experiment directory holds, merged (under a lock) with earlier or concurrent runs of
+    other task subsets."""
+    from train.fileio import FileLock, LockedError
+
     path = Path(out).resolve() / experiment.name / EXPERIMENT_FILE
-    info = experiment.describe()
-    old = json.loads(path.read_text()) if path.exists() else {}
-    info["budget"] = budget_name
-    info["tasks_run"] = sorted(set(old.get("tasks_run", [])) | {j.task for j in jobs},
-                               key=lambda t: list(experiment.tasks).index(t))
     path.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_text(path, json.dumps(info, indent=2) + "\n")
+    lock = FileLock(path.parent / EXPERIMENT_LOCK, f"{path}", "try again in a moment")
+    deadline = time.monotonic() + 30.0
+    while True:  # writers hold this lock for milliseconds: wait for it
+        try:
+            lock.acquire()
+            break
+        except LockedError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.05)
+    try:
+        old = _read_json(path)
+        info = experiment.describe()
+        info["budget"] = budget_name
+        info["tasks_run"] = sorted((set(old.get("tasks_run", [])) & set(experiment.tasks)) | {j.task for j in jobs},
+                                   key=lambda t: list(experiment.tasks).index(t))
+        atomic_text(path, json.dumps(info, indent=2) + "\n")
+    finally:
+        lock.release()
     return path
 
 
+def _read_json(path: Path) -> dict[str, Any]:
+    """A JSON object from ``path`` ({} if missing or unreadable)."""
+    try:
+        data = json.loads(path.read_text())
+    except (FileNotFoundError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
 # ---- one job -------------------------------------------------------------------------------------------
-
-
-def _atomic_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (temporary file, fsync, rename)."""
-    from train.rundir import atomic_write
-
-    atomic_write(path, text.encode())
 
 
 def read_done(run_dir: str | Path) -> dict[str, Any] | None:
@@ -139,24 +163,36 @@ def job_is_done(job: Job) -> bool:
     cfg = TrainConfig.from_dict(job.config)
     if done.get("total_steps", -1) < cfg.total_steps:
         return False  # a longer budget was asked for: the run is resumed from its checkpoint
+    from train.rundir import RunDir, check_same_run
+
     saved = Path(job.run_dir) / "config.json"
     if saved.exists():
-        from train.rundir import check_same_run
-
         check_same_run(TrainConfig.from_dict(json.loads(saved.read_text())), cfg, saved)
+    run = RunDir(job.run_dir)
+    if not run.metrics_path.exists() and run.has_checkpoint():  # deleted by hand: rebuild it from the checkpoint
+        run.lock()
+        try:
+            run.restore_metrics()
+        finally:
+            run.unlock()
     return True
 
 
 def _clear_unstarted(run_dir: Path) -> None:
     """Remove what a run killed before its first checkpoint left behind (refuse to touch anything else)."""
+    from train.rundir import LOCK_NAME
+
     if not run_dir.exists():
         return
-    unknown = [p.name for p in run_dir.iterdir() if p.name not in TRAINER_FILES and p.name != DONE_FILE]
+    keep = {*TRAINER_FILES, DONE_FILE}
+    unknown = [p.name for p in run_dir.iterdir()
+               if p.name not in keep and p.name != LOCK_NAME and not is_temporary(p.name)]
     if unknown:
         raise RuntimeError(f"{run_dir} holds no checkpoint but other files ({', '.join(sorted(unknown))}); "
                            f"move them away or choose another --out")
     for p in run_dir.iterdir():
-        shutil.rmtree(p) if p.is_dir() else p.unlink()
+        if p.name != LOCK_NAME:
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
 
 
 def execute(job: Job) -> JobResult:
@@ -170,21 +206,31 @@ def execute(job: Job) -> JobResult:
             return JobResult(job.name, "skipped")
         finished = _run_measurement(job) if job.is_measurement else _run_training(job)
         return JobResult(job.name, "done" if finished else "interrupted", time.perf_counter() - began)
-    except Exception:  # reported to the caller, which carries on with the other jobs
-        return JobResult(job.name, "failed", time.perf_counter() - began, traceback.format_exc())
+    except Exception as err:  # reported to the caller, which carries on with the other jobs
+        from train.rundir import RunDirError
+
+        why = " ".join(str(err).split()) if isinstance(err, RunDirError) else traceback.format_exc()
+        return JobResult(job.name, "failed", time.perf_counter() - began, why)
 
 
 def _run_training(job: Job) -> bool:
     """Train (or resume) the job's run; write the done marker when it reached its budget."""
+    from train.rundir import RunDir
     from train.trainer import Trainer
 
     run_dir = Path(job.run_dir)
     cfg = TrainConfig.from_dict(job.config)
-    resume = (run_dir / "checkpoint.pkl").exists()
-    if not resume:
-        _clear_unstarted(run_dir)
+    run = RunDir(run_dir)
+    run.lock()  # one writer per run directory, held until the trainer closes: a concurrent sweep is refused
+    try:
+        resume = run.has_checkpoint()
+        if not resume:
+            _clear_unstarted(run_dir)
+    except BaseException:
+        run.unlock()
+        raise
     began = time.perf_counter()
-    trainer = Trainer(cfg, run_dir, resume=resume)
+    trainer = Trainer(cfg, run, resume=resume)
     try:
         trainer.run()
     finally:
@@ -193,7 +239,7 @@ def _run_training(job: Job) -> bool:
         return False  # stopped by a signal, with a checkpoint
     marker = {"total_steps": trainer.cfg.total_steps, "seeds": trainer.cfg.run.seeds,
               "seconds": round(time.perf_counter() - began, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
-    _atomic_text(run_dir / DONE_FILE, json.dumps(marker, indent=2) + "\n")
+    atomic_text(run_dir / DONE_FILE, json.dumps(marker, indent=2) + "\n")
     return True
 
 
@@ -208,7 +254,7 @@ def _run_measurement(job: Job) -> bool:
                         f"{cfg['steps']} steps)")
     marker = {"config": cfg, "seconds": round(time.perf_counter() - began, 1),
               "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
-    _atomic_text(run_dir / DONE_FILE, json.dumps(marker, indent=2) + "\n")
+    atomic_text(run_dir / DONE_FILE, json.dumps(marker, indent=2) + "\n")
     return True
 
 
@@ -244,11 +290,11 @@ def write_measure_table(rows: Sequence[dict[str, Any]], stem: Path, title: str) 
     writer.writerows(rows)
     csv_path, md_path = stem.with_suffix(".csv"), stem.with_suffix(".md")
     stem.parent.mkdir(parents=True, exist_ok=True)
-    _atomic_text(csv_path, buf.getvalue())
+    atomic_text(csv_path, buf.getvalue())
     lines = [f"### {title}", "", "| condition | mean ± std | seeds | censored |", "|---|---|---|---|"]
     lines += [f"| {r['condition']} | {r['mean']:.1f} ± {r['std']:.1f} | {r['seeds']} | {r['censored']} |"
               for r in rows]
-    _atomic_text(md_path, "\n".join(lines) + "\n")
+    atomic_text(md_path, "\n".join(lines) + "\n")
     return csv_path, md_path
 
 
@@ -257,26 +303,74 @@ def write_measure_table(rows: Sequence[dict[str, Any]], stem: Path, title: str) 
 
 _STOP = None
 """In a local worker process: the sweep's stop event (set when the user interrupts the sweep)."""
+_PARENT: int | None = None
+"""In a local worker process: the pid of the sweep that started it."""
 
 
-def _init_worker(stop) -> None:
-    """Worker initializer: Ctrl-C reaches the trainer's own handler (a clean stop), not the pool loop."""
-    global _STOP
-    _STOP = stop
+def _init_worker(stop, parent: int) -> None:
+    """Worker initializer: Ctrl-C reaches the trainer's own handler (a clean stop), not the pool loop; the
+    worker gets SIGTERM (a clean stop too) when the sweep's process dies, and then takes no further job."""
+    global _STOP, _PARENT
+    _STOP, _PARENT = stop, parent
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(signal.SIGTERM)
+    if _parent_gone():  # it died before the request took effect
+        os._exit(1)
+
+
+def _parent_gone() -> bool:
+    """True in a worker whose sweep process has died (the worker was re-parented)."""
+    return _PARENT is not None and os.getppid() != _PARENT
+
+
+_INTERRUPTED = False
+"""In a local worker process: a job of this worker was stopped by a signal, so it takes no further job."""
 
 
 def _execute_unless_stopped(job: Job) -> JobResult:
-    """`execute`, unless the sweep was interrupted before this job started."""
-    if _STOP is not None and _STOP.is_set():
+    """`execute`, unless the sweep was interrupted before this job started; a worker whose sweep died
+    exits instead of taking (or reporting) a job.
+
+    A worker whose job a signal stopped takes no further job either: the kernel's parent-death signal can
+    arrive when the sweep's first thread dies, while its other threads (same pid) still live.
+    """
+    global _INTERRUPTED
+    if _parent_gone():
+        os._exit(0)
+    if _INTERRUPTED or (_STOP is not None and _STOP.is_set()):
         return JobResult(job.name, "interrupted")
-    return execute(job)
+    result = execute(job)
+    _INTERRUPTED = _INTERRUPTED or result.status == "interrupted"
+    if _parent_gone():
+        os._exit(0)
+    return result
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM to the sweep, handled like Ctrl-C."""
+
+
+@contextmanager
+def _sigterm_interrupts():
+    """Inside the block (main thread only), SIGTERM raises `_Terminated`."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise _Terminated()
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def run_local(jobs: Sequence[Job], workers: int, on_result: Callable[[JobResult], None]) -> list[JobResult]:
     """Run ``jobs`` in up to ``workers`` local processes (one job per process at a time)."""
     import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures import ProcessPoolExecutor
 
     results: list[JobResult] = []
     if not jobs:
@@ -284,25 +378,36 @@ def run_local(jobs: Sequence[Job], workers: int, on_result: Callable[[JobResult]
     ctx = multiprocessing.get_context("spawn")  # no forked torch/OpenMP state in the workers
     stop = ctx.Event()
     pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(jobs))), mp_context=ctx,
-                               initializer=_init_worker, initargs=(stop,))
-    pending = {pool.submit(_execute_unless_stopped, job): job for job in jobs}
+                               initializer=_init_worker, initargs=(stop, os.getpid()))
     try:
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in finished:
-                job = pending.pop(fut)
-                try:
-                    result = fut.result()
-                except Exception as err:  # a worker died (e.g. killed): report it, keep going
-                    result = JobResult(job.name, "failed", error=f"worker process failed: {err!r}")
-                results.append(result)
-                on_result(result)
-    except KeyboardInterrupt:
-        stop.set()  # queued jobs do not start; running trainers stop at their epoch end (they got SIGINT too)
+        with _sigterm_interrupts():
+            _collect(pool, jobs, results, on_result)
+    except KeyboardInterrupt as err:
+        stop.set()  # queued jobs do not start; running trainers stop at their epoch end
+        if isinstance(err, _Terminated):  # Ctrl-C reached the workers too; SIGTERM only this process
+            for proc in list((pool._processes or {}).values()):
+                proc.terminate()
         pool.shutdown(wait=True, cancel_futures=True)
         raise
     pool.shutdown(wait=True)
     return results
+
+
+def _collect(pool, jobs: Sequence[Job], results: list[JobResult], on_result: Callable[[JobResult], None]) -> None:
+    """Submit ``jobs`` to ``pool`` and gather their results as they finish."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    pending = {pool.submit(_execute_unless_stopped, job): job for job in jobs}
+    while pending:
+        finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in finished:
+            job = pending.pop(fut)
+            try:
+                result = fut.result()
+            except Exception as err:  # a worker died (e.g. killed): report it, keep going
+                result = JobResult(job.name, "failed", error=f"worker process failed: {err!r}")
+            results.append(result)
+            on_result(result)
 
 
 def _import_ray():
@@ -361,9 +466,9 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
     def on_result(result: JobResult) -> None:
         bar.update(1)
         if result.status == "failed":
-            bar.write(f"FAILED {result.job}:\n{result.error}")
+            bar.write(f"FAILED {result.job}: {result.error}", file=sys.stderr)
         elif result.status == "done":
-            bar.write(f"finished {result.job} in {result.seconds:.0f} s")
+            bar.write(f"finished {result.job} in {result.seconds:.0f} s", file=sys.stderr)
 
     if executor not in ("local", "ray"):
         bar.close()
@@ -409,7 +514,7 @@ def print_plan(jobs: Sequence[Job], file=None) -> None:
                     f"p={c.env.dynamism:g}, shaping={c.env.shaping}, "
                     f"{'reset-free' if c.env.reset_free else 'episodic'}, "
                     f"reward={c.env.reward}{', rnd' if c.rnd.rnd else ''}")
-        state = "done" if _safe_is_done(job) else ("resume" if (Path(job.run_dir) / "checkpoint.pkl").exists()
+        state = "done" if _safe_is_done(job) else ("resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists()
                                                     else "new")
         print(f"[{state:>6s}] {job.name}: {what}", file=file)
 

@@ -10,7 +10,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from train.config import EnvConfig
+from train.config import CONFIG_OWNED_ENV_KWARGS, EnvConfig
 
 
 @dataclass(frozen=True)
@@ -71,14 +71,44 @@ class EnvInfo:
     """Keyword arguments of the evaluation MDP (`test_mdp_kwargs()`)."""
 
 
+def task_parameters(task: Task) -> tuple[str, ...]:
+    """The task parameters ``env_kwargs`` may set (the horizon and the ecology knobs belong to the config)."""
+    import dataclasses
+
+    from gymnasium.envs.registration import load_env_creator
+
+    entry = gym.spec(task.env_id).entry_point
+    env_class = load_env_creator(entry) if isinstance(entry, str) else entry
+    if hasattr(env_class, "Config"):
+        names = [f.name for f in dataclasses.fields(env_class.Config)]
+    else:
+        from foodcollector.params import PARAM_NAMES
+
+        names = list(PARAM_NAMES)
+    return tuple(n for n in names if n not in CONFIG_OWNED_ENV_KWARGS)
+
+
+def check_env_kwargs(task: Task, env_kwargs: dict[str, Any]) -> None:
+    """Raise ValueError (one line, listing the valid names) for an env kwarg the task does not take."""
+    valid = task_parameters(task)
+    unknown = sorted(set(env_kwargs) - set(valid))
+    if unknown:
+        raise ValueError(f"{task.name} has no parameter {unknown[0]!r} (--env-kwarg); its parameters are: "
+                         f"{', '.join(valid)}")
+
+
 def probe(task: Task, env_cfg: EnvConfig) -> EnvInfo:
     """Build one training environment and read its spaces, observation split and test MDP.
 
     The training ``horizon`` is left out of the probe: an environment's ``test_mdp_kwargs()`` may echo
     its own horizon, and the test MDP must keep the task's test horizon.
     """
+    check_env_kwargs(task, env_cfg.env_kwargs)
     kwargs = {k: v for k, v in env_cfg.env_make_kwargs.items() if k != "horizon"}
-    env = gym.make(task.env_id, **kwargs)
+    try:
+        env = gym.make(task.env_id, **kwargs)
+    except TypeError as err:  # a parameter of the wrong type: the task's own one-line message
+        raise ValueError(str(err)) from None
     try:
         base = env.unwrapped
         view_dim, inventory_dim = base.observation_split
@@ -110,3 +140,50 @@ def visit_cells(agent_pos: np.ndarray, shape: tuple[int, int], grid: bool) -> tu
     scaled = (pos + FOOD_COLLECTOR_HALF_SIZE) * (shape[0] / (2 * FOOD_COLLECTOR_HALF_SIZE))
     cells = np.clip(scaled.astype(np.int64), 0, shape[0] - 1)
     return cells[:, 1], cells[:, 0]
+
+
+# ---- environment state as data (for checkpoints) -------------------------------------------------------
+
+
+def env_state(env: gym.vector.VectorEnv) -> dict[str, Any]:
+    """The state of a training vector env as plain data: grid worlds by record field, or each food
+    collector's `get_state` and the vector env's autoreset flags."""
+    if hasattr(env, "worlds"):  # the grid tasks' batched engine: one structured record per world
+        worlds = env.worlds
+        return {"kind": "grid", "worlds": {name: worlds[name].copy() for name in worlds.dtype.names}}
+    if isinstance(env, gym.vector.SyncVectorEnv) and all(hasattr(e.unwrapped, "get_state") for e in env.envs):
+        return {"kind": "sync", "autoreset": np.asarray(env._autoreset_envs, dtype=bool).copy(),
+                "envs": [e.unwrapped.get_state() for e in env.envs]}
+    raise TypeError(f"{type(env).__name__} has no saveable state (grid worlds or get_state)")
+
+
+def restore_env_state(env: gym.vector.VectorEnv, state: dict[str, Any]) -> None:
+    """Put `env_state` output back into ``env`` (same task and number of worlds, already reset once)."""
+    kind = state.get("kind")
+    if kind == "grid" and hasattr(env, "worlds"):
+        worlds = env.worlds
+        saved = state["worlds"]
+        if set(saved) != set(worlds.dtype.names):
+            raise ValueError("the saved grid worlds do not have this task's fields")
+        for name in worlds.dtype.names:
+            _check_like(saved[name], worlds[name], f"world field {name!r}")
+        for name in worlds.dtype.names:
+            worlds[name] = saved[name]
+        return
+    if kind == "sync" and isinstance(env, gym.vector.SyncVectorEnv):
+        if len(state["envs"]) != len(env.envs):
+            raise ValueError(f"the checkpoint holds {len(state['envs'])} worlds, this run has {len(env.envs)}")
+        autoreset = np.asarray(state["autoreset"])
+        _check_like(autoreset, np.asarray(env._autoreset_envs, dtype=bool), "autoreset flags")
+        for e, saved in zip(env.envs, state["envs"]):
+            e.unwrapped.set_state(saved)
+        env._autoreset_envs = autoreset.copy()
+        return
+    raise ValueError(f"the checkpoint's environment state ({kind!r}) does not fit {type(env).__name__}")
+
+
+def _check_like(saved: Any, live: np.ndarray, what: str) -> None:
+    """Refuse a saved array whose shape or dtype differs from the live one."""
+    if not isinstance(saved, np.ndarray) or saved.shape != live.shape or saved.dtype != live.dtype:
+        got = f"{saved.dtype} {saved.shape}" if isinstance(saved, np.ndarray) else type(saved).__name__
+        raise ValueError(f"saved {what} is {got}, expected {live.dtype} {live.shape}")

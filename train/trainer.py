@@ -12,6 +12,7 @@ counts toward the step budget like any other.
 from __future__ import annotations
 
 import math
+import os
 import signal
 import threading
 import time
@@ -28,12 +29,13 @@ from train.evaluate import Evaluator, evaluation_kwargs
 from train.network import QNetwork
 from train.replay import Replay
 from train.rnd import RND
-from train.rundir import RunDir
-from train.tasks import EnvInfo, Task, get_task, make_vector_env, probe, visit_cells
+from train.rundir import RunDir, RunDirError
+from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state, visit_cells
 
 STREAMS = ("init", "explore", "sample", "rnd")
 """The random streams of each seed, spawned from its SeedSequence in this order."""
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2
+"""Version of `Trainer.state_dict` (the layout inside the checkpoint file, `train.checkpoint`)."""
 
 
 def resolve(cfg: TrainConfig, task: Task, info: EnvInfo) -> TrainConfig:
@@ -51,7 +53,7 @@ def seed_streams(seed: int) -> dict[str, np.random.Generator]:
 class Trainer:
     """Trains every seed of one condition together; optionally keeps a run directory."""
 
-    def __init__(self, cfg: TrainConfig, run_dir: str | Path | None = None, resume: bool = False) -> None:
+    def __init__(self, cfg: TrainConfig, run_dir: str | Path | RunDir | None = None, resume: bool = False) -> None:
         self.task = get_task(cfg.env.task)
         self.info = probe(self.task, cfg.env)
         self.cfg = cfg = resolve(cfg, self.task, self.info)
@@ -64,18 +66,38 @@ class Trainer:
         self.rngs = {name: [s[name] for s in streams] for name in STREAMS}
         net = QNetwork(self.info.view_dim, self.info.obs_dim - self.info.view_dim, self.info.num_actions,
                        cfg.dqn.view_layers, cfg.dqn.inventory_layers, cfg.dqn.head_layers)
+        check_replay_memory(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
+                            cfg.dqn.float_obs_dtype)
         self.agent = DoubleDQN(net, cfg.dqn, self.rngs["init"])
         self.rnd = RND(self.info.obs_dim, cfg.rnd, self.rngs["rnd"]) if cfg.rnd.rnd else None
         self.replay = Replay(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
                              cfg.dqn.float_obs_dtype)
         self.env = make_vector_env(self.task.env_id, self.num_agents, cfg.env.env_make_kwargs)
         self._evaluator: Evaluator | None = None
-        self.run_dir = RunDir(run_dir) if run_dir is not None else None
+        self.run_dir = RunDir(run_dir) if isinstance(run_dir, (str, Path)) else run_dir
         self._fresh_state()
+        self.resumed_from = -1
+        """The step a resumed run continued from (-1: a fresh run)."""
         if self.run_dir is not None:
-            self.run_dir.prepare(cfg, resume)
+            self._open_run_dir(resume)
+
+    def _open_run_dir(self, resume: bool) -> None:
+        """Lock the run directory; on resume restore the checkpoint and rewrite config.json (and a deleted
+        metrics.csv)."""
+        try:
+            self.run_dir.prepare(self.cfg, resume)
             if resume:
-                self.load_state_dict(self.run_dir.load_checkpoint(cfg))
+                self.load_state_dict(self.run_dir.load_checkpoint(self.cfg))
+                if self.step > self.cfg.total_steps:
+                    raise RunDirError(f"the run in {self.run_dir.path} stands at step {self.step}, beyond the "
+                                      f"{self.cfg.total_steps} steps asked for; ask for at least {self.step} steps")
+                self.resumed_from = self.step
+                self.run_dir.write_config(self.cfg)
+                self.run_dir.restore_metrics(self.rows)
+        except BaseException:
+            self.run_dir.unlock()
+            self.env.close()
+            raise
 
     @property
     def num_agents(self) -> int:
@@ -206,7 +228,8 @@ class Trainer:
             self.start()
         if self.last_checkpoint < 0:
             self.save()
-        logger = _Logger(self.run_dir, cfg) if self.run_dir is not None else None
+        resumed = self.resumed_from >= 0
+        logger = _Logger(self.run_dir, cfg, self.step if resumed else None) if self.run_dir is not None else None
         with _stop_on_signal() as stop, _progress(cfg, self.step) as bar:
             while self.epoch < cfg.num_epochs and not stop.is_set():
                 before = self.step
@@ -225,51 +248,111 @@ class Trainer:
         return self.rows
 
     def save(self) -> None:
-        """Write a checkpoint (if this trainer keeps a run directory)."""
+        """Write a checkpoint (if this trainer keeps a run directory), then continue from what it holds.
+
+        Continuing from the saved environment state, exactly as a resumed run does, keeps a run that is
+        interrupted and resumed identical to one that is not (see `train.tasks.restore_env_state`).
+        """
         self.last_checkpoint = self.step
+        state = self.state_dict()
         if self.run_dir is not None:
-            self.run_dir.save_checkpoint(self.state_dict())
+            self.run_dir.save_checkpoint(state)
+        if state["env"] is not None:
+            restore_env_state(self.env, state["env"])
 
     def state_dict(self) -> dict[str, Any]:
-        """Everything needed to continue the run exactly (the environment is pickled whole)."""
+        """Everything needed to continue the run exactly, as data: JSON values, arrays and tensors."""
         return {
             "version": CHECKPOINT_VERSION, "config": self.cfg.to_dict(), "step": self.step,
-            "epoch": self.epoch, "obs": self.obs, "autoreset": self.autoreset.copy(), "env": self.env,
+            "epoch": self.epoch, "obs": self.obs, "autoreset": self.autoreset.copy(),
+            "env": env_state(self.env) if self.obs is not None else None,
             "agent": self.agent.state_dict(), "rnd": self.rnd.state_dict() if self.rnd else None,
             "replay": self.replay.state_dict(),
             "rngs": {name: [g.bit_generator.state for g in gens] for name, gens in self.rngs.items()},
+            "torch_rng": torch.get_rng_state(),
             "visits": self.visits.copy(), "loss_sum": self.loss_sum.clone(), "loss_count": self.loss_count,
             "train_reward": self.train_reward.copy(), "rows": list(self.rows),
             "last_checkpoint": self.last_checkpoint,
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore a `state_dict` (same resolved configuration)."""
+        """Restore a `state_dict` (same resolved configuration); refuse arrays of the wrong shape."""
         if state.get("version") != CHECKPOINT_VERSION:
-            raise ValueError(f"checkpoint version {state.get('version')} is not {CHECKPOINT_VERSION}")
-        self.env.close()
-        self.env = state["env"]
+            raise RunDirError(f"checkpoint layout version {state.get('version')} is not {CHECKPOINT_VERSION}; "
+                              f"re-run the training with this ecorl in a new --out directory")
+        try:
+            self._load_arrays(state)
+        except (KeyError, TypeError, ValueError, RuntimeError) as err:
+            raise RunDirError(f"the checkpoint does not fit this run ({type(err).__name__}: {err}); start a "
+                              f"fresh run in another --out directory") from None
+
+    def _load_arrays(self, state: dict[str, Any]) -> None:
+        """The body of `load_state_dict`."""
+        _check_shapes(state["agent"], self.agent.state_dict(), "agent")
+        if self.rnd is not None:
+            _check_shapes(state["rnd"], self.rnd.state_dict(), "rnd")
+        if state["env"] is not None:
+            self.start()  # a seeded reset, then every world is overwritten with its saved state
+            restore_env_state(self.env, state["env"])
         self.agent.load_state_dict(state["agent"])
         if self.rnd is not None:
             self.rnd.load_state_dict(state["rnd"])
         self.replay.load_state_dict(state["replay"])
         for name, gens in self.rngs.items():
-            for g, saved in zip(gens, state["rngs"][name]):
+            for g, saved in zip(gens, state["rngs"][name], strict=True):
                 g.bit_generator.state = saved
-        self.step, self.epoch, self.obs = state["step"], state["epoch"], state["obs"]
-        self.autoreset = state["autoreset"].copy()
+        torch.set_rng_state(state["torch_rng"])
+        k = self.num_agents
+        for name, shape in (("visits", self.visits.shape), ("train_reward", (k,)), ("autoreset", (k,)),
+                            ("obs", None if state["obs"] is None else (k, self.info.obs_dim))):
+            if shape is not None and np.shape(state[name]) != shape:
+                raise ValueError(f"{name} has shape {np.shape(state[name])}, this run needs {shape}")
+        self.step, self.epoch = int(state["step"]), int(state["epoch"])
+        self.obs = None if state["obs"] is None else np.asarray(state["obs"], dtype=np.float32)
+        self.autoreset = np.asarray(state["autoreset"], dtype=bool).copy()
         self.visits[...] = state["visits"]
         self.loss_sum.copy_(state["loss_sum"])
-        self.loss_count = state["loss_count"]
+        self.loss_count = int(state["loss_count"])
         self.train_reward[:] = state["train_reward"]
         self.rows = list(state["rows"])
-        self.last_checkpoint = state["last_checkpoint"]
+        self.last_checkpoint = int(state["last_checkpoint"])
 
     def close(self) -> None:
-        """Release the environments."""
+        """Release the environments and the run directory's lock."""
         self.env.close()
+        if self.run_dir is not None:
+            self.run_dir.unlock()
         if self._evaluator is not None:
             self._evaluator.close()
+
+
+def _check_shapes(saved: Any, live: Any, where: str) -> None:
+    """Raise ValueError where a saved tensor's shape differs from the live one (copy_ would broadcast)."""
+    if isinstance(live, dict):
+        for key, value in live.items():
+            _check_shapes(saved[key], value, f"{where}/{key}")
+    elif isinstance(live, torch.Tensor) and (not isinstance(saved, torch.Tensor) or saved.shape != live.shape):
+        shape = tuple(saved.shape) if isinstance(saved, torch.Tensor) else type(saved).__name__
+        raise ValueError(f"{where} has shape {shape}, this run needs {tuple(live.shape)}")
+
+
+def _memory_bytes() -> int | None:
+    """Physical memory of this machine in bytes (None where unknown)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_replay_memory(num_agents: int, capacity: int, obs_dim: int, binary: bool, float_dtype: str) -> int:
+    """Refuse a replay buffer larger than this machine's memory before allocating it; return its bytes."""
+    need = Replay.bytes_needed(num_agents, capacity, obs_dim, binary, float_dtype)
+    have = _memory_bytes()
+    if have is not None and need > have:
+        raise ValueError(f"the replay buffers need {need / 2**30:.1f} GiB ({num_agents} seeds x {capacity} slots x "
+                         f"{need // (num_agents * capacity)} bytes), more than this machine's "
+                         f"{have / 2**30:.1f} GiB of memory; use fewer --seeds or a smaller --buffer-size")
+    return need
 
 
 def _postfix(rows: list[dict[str, Any]], num_agents: int, cfg: TrainConfig) -> dict[str, str]:
@@ -315,7 +398,9 @@ def _stop_on_signal():
 class _Logger:
     """Writes metrics.csv, the visitation counts and (optionally) TensorBoard scalars at each evaluation."""
 
-    def __init__(self, run_dir: RunDir, cfg: TrainConfig) -> None:
+    def __init__(self, run_dir: RunDir, cfg: TrainConfig, resumed_at: int | None = None) -> None:
+        """``resumed_at``: the step a resumed run continues from; TensorBoard drops what a killed process
+        logged after it, so no step appears twice."""
         self.run_dir = run_dir
         self.writer = None
         if cfg.run.tensorboard:
@@ -324,7 +409,8 @@ class _Logger:
             except ImportError as err:
                 raise ImportError(f"--tensorboard needs the tensorboard package ({err}); install it with "
                                   f"pip install 'ecorl[tensorboard]', or drop --tensorboard") from err
-            self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"))
+            purge = None if resumed_at is None else resumed_at + 1
+            self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"), purge_step=purge)
 
     def log(self, trainer: Trainer, rows: list[dict[str, Any]]) -> None:
         """Persist the latest evaluation."""

@@ -1,6 +1,6 @@
 """Rollout videos: a trained policy (or a uniform random one) in a task's test MDP or training env.
 
-The policy is one seed's network from a run directory, its ``checkpoint.pkl``, or a policy file
+The policy is one seed's network from a run directory, its ``checkpoint.npz``, or a policy file
 (`train.policy`); it acts epsilon-greedily (epsilon 0.05 by default).
 """
 
@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from train.fileio import atomic_path
 from train.policy import Policy, load_policy
 
 VIDEO_EPSILON = 0.05
@@ -130,5 +131,7 @@ def record_video(task: str | None, out: str | Path, policy_path: str | Path | No
         fps = env.metadata.get("render_fps", 8)
     finally:
         env.close()
-    return Video(write_video(film.frames, out, fps=fps), film.episodes, film.solved, film.total_return,
+    with atomic_path(out) as tmp:
+        write_video(film.frames, tmp, fps=fps)
+    return Video(Path(out), film.episodes, film.solved, film.total_return,
                  get_task(task).metric)

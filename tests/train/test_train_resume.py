@@ -110,7 +110,7 @@ def test_resume_without_checkpoint_is_refused(tmp_path):
 
 @pytest.mark.parametrize("damage", ["flip", "truncate", "header"])
 def test_corrupt_checkpoint_is_refused(finished_run, damage):
-    path = finished_run / "checkpoint.pkl"
+    path = finished_run / "checkpoint.npz"
     data = bytearray(path.read_bytes())
     if damage == "flip":
         data[len(data) // 2] ^= 0xFF
@@ -135,7 +135,7 @@ def test_mismatched_checkpoint_is_refused_naming_the_setting(finished_run, capsy
     with pytest.raises(RunDirError, match=r"dynamism: checkpoint has 0\.0, you asked for 0\.5"):
         Trainer(SMALL.replace(dynamism=0.5), finished_run, resume=True)
     code = main(["train", "salad", "--out", str(finished_run), "--resume", "--lr", "0.001", "--no-progress"])
-    assert code == 2 and "lr: checkpoint has 0.0001, you asked for 0.001" in capsys.readouterr().err
+    assert code == 2 and "with --lr 0.001: the run was made with 0.0001" in capsys.readouterr().err
 
 
 def test_sigterm_stops_at_the_epoch_end_with_a_checkpoint(tmp_path, monkeypatch):
@@ -149,6 +149,7 @@ def test_sigterm_stops_at_the_epoch_end_with_a_checkpoint(tmp_path, monkeypatch)
 
     monkeypatch.setattr(trainer, "train_epoch", epoch_then_signal)
     trainer.run()
+    trainer.close()  # releases the run directory's lock
     assert trainer.epoch == 2 and trainer.last_checkpoint == trainer.step == 600
     resumed = Trainer(SMALL.replace(steps=2000), tmp_path / "run", resume=True)
     assert resumed.step == 600 and resumed.epoch == 2

@@ -48,7 +48,7 @@ def test_task_trains_end_to_end(task, tmp_path):
     assert visits.shape == (2, *trainer.info.visit_shape) and visits.sum(axis=(1, 2)).tolist() == [2200, 2200]
     assert (tmp_path / "visits" / "000002200.npy").exists()
     assert json.loads((tmp_path / "config.json").read_text())["env"]["task"] == task
-    assert (tmp_path / "checkpoint.pkl").stat().st_size > 0
+    assert (tmp_path / "checkpoint.npz").stat().st_size > 0
 
 
 def test_episode_boundaries_are_not_terminals_on_truncation(tmp_path):

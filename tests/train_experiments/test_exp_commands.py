@@ -88,7 +88,7 @@ def test_random_video(tmp_path, capsys):
 def test_policy_video_from_a_run(smoke_root, tmp_path, capsys):
     run_dir = smoke_root / "headline" / "salad" / "dynamic-reset-free"
     out = tmp_path / "policy.mp4"
-    assert commands.main(["video", "salad", "--policy", str(run_dir / "checkpoint.pkl"), "--agent", "1",
+    assert commands.main(["video", "salad", "--policy", str(run_dir / "checkpoint.npz"), "--agent", "1",
                           "--steps", "20", "--out", str(out), "--seed", "3"]) == 0
     assert _frames(out) >= 21
     assert commands.main(["video", "salad", "--policy", str(run_dir), "--train-env", "--steps", "10",

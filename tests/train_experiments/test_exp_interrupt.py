@@ -5,7 +5,6 @@ from __future__ import annotations
 import csv
 import json
 import os
-import pickle
 import signal
 import subprocess
 import sys
@@ -15,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from train.checkpoint import CHECKPOINT_NAME, read_checkpoint
 from train.experiments import get_experiment
 from train.sweep import DONE_FILE, execute, plan
 
@@ -45,9 +45,9 @@ def _evaluated_twice(out: Path) -> bool:
 
 
 def _checkpoint_step(run_dir: Path) -> int:
-    """The step of a run's checkpoint (header: 8 magic bytes and a 32-byte checksum, then the pickle); -1: none."""
-    path = run_dir / "checkpoint.pkl"
-    return pickle.loads(path.read_bytes()[40:])["step"] if path.exists() else -1
+    """The step of a run's checkpoint (read from its manifest, no arrays); -1: none."""
+    path = run_dir / CHECKPOINT_NAME
+    return read_checkpoint(path, keys=[])["step"] if path.exists() else -1
 
 
 def _kill_when_training(out: Path) -> None:
@@ -108,7 +108,7 @@ def test_a_run_killed_before_its_first_checkpoint_starts_afresh(tmp_path):
     (run_dir / "config.json").write_text("{}")  # what a kill right after the trainer's prepare() leaves
     assert execute(job).status == "done"
     (run_dir / "notes.txt").write_text("mine")
-    (run_dir / "checkpoint.pkl").unlink()
+    (run_dir / CHECKPOINT_NAME).unlink()
     (run_dir / DONE_FILE).unlink()
     result = execute(job)  # unknown files are never deleted
     assert result.status == "failed" and "notes.txt" in result.error
@@ -146,6 +146,6 @@ def test_ctrl_c_stops_cleanly_and_the_rerun_resumes(tmp_path, cli):
     assert proc.returncode == 130 and "re-run the same command to resume" in err
     runs = sorted(out.glob("rnd/factory/*"))
     assert len(runs) < 4 or not all((r / DONE_FILE).exists() for r in runs)  # queued runs did not start
-    assert all((r / "checkpoint.pkl").exists() for r in runs if (r / "config.json").exists())
+    assert all((r / CHECKPOINT_NAME).exists() for r in runs if (r / "config.json").exists())
     cli(*args)
     assert all((out / "rnd" / "factory" / c / DONE_FILE).exists() for c in ("static", "rnd", "dynamic", "env-shaping"))

@@ -125,7 +125,7 @@ def test_export_and_video_commands(run_dir, tmp_path, capsys):
 def test_a_corrupt_checkpoint_is_refused_by_name(run_dir, tmp_path, capsys):
     copy = tmp_path / "run"
     shutil.copytree(run_dir, copy)
-    with (copy / "checkpoint.pkl").open("r+b") as f:
+    with (copy / "checkpoint.npz").open("r+b") as f:
         f.seek(-100, 2)
         f.write(b"x" * 100)
     for command in (["export", str(copy), "--out", str(tmp_path / "p.npz")], ["evaluate", str(copy)],

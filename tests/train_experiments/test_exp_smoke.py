@@ -10,7 +10,7 @@ import pytest
 from train.experiments import EXPERIMENTS
 from train.sweep import DONE_FILE, EXPERIMENT_FILE
 
-EXPECTED_FILES = ("config.json", "metrics.csv", "checkpoint.pkl", "visits.npy", DONE_FILE)
+EXPECTED_FILES = ("config.json", "metrics.csv", "checkpoint.npz", "visits.npy", DONE_FILE)
 
 
 @pytest.fixture(scope="module")

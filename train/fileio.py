@@ -1,0 +1,172 @@
+"""Every file ecorl writes goes through here: atomic replacement, advisory locks, worker lifetime.
+
+* `atomic_file` / `atomic_path`: write under a unique temporary name in the target's directory, fsync, then
+  ``os.replace`` onto the target. A crash or SIGKILL at any point leaves the old file or the new one, never a
+  mix; the temporary is removed when the block raises. Temporary names start with ``.`` and contain
+  ``.tmp`` (`is_temporary`), so two writers never share one.
+* `FileLock`: an exclusive ``fcntl.flock`` on a lock file, taken without waiting; a second holder is refused
+  with the first one's pid. The kernel releases it when the process dies, however it dies.
+* `die_with_parent`: a worker process asks Linux for SIGTERM when its parent dies.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import errno
+import fcntl
+import os
+import secrets
+import signal
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import BinaryIO
+
+TEMP_MARK = ".tmp"
+"""Part of every temporary file name (see `temporary_name`)."""
+
+_replace = os.replace
+"""The final rename (a module attribute so that kill tests can interrupt a write right before it)."""
+
+
+def temporary_name(path: Path) -> Path:
+    """A fresh hidden name beside ``path`` that keeps its suffix: ``.NAME.PID-RANDOM.tmp.SUFFIX``."""
+    token = f"{os.getpid()}-{secrets.token_hex(4)}"
+    return path.with_name(f".{path.stem}.{token}{TEMP_MARK}{path.suffix}")
+
+
+def is_temporary(name: str) -> bool:
+    """True for a name made by `temporary_name` (what an interrupted write may leave behind)."""
+    return name.startswith(".") and TEMP_MARK in name
+
+
+def fsync_dir(path: Path) -> None:
+    """Make a rename inside directory ``path`` durable."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _fsync_file(path: Path) -> None:
+    """Flush a file written by name (by a library) to disk."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path for a library that writes files by name; on success it replaces ``path``.
+
+    The parent directory is created. If the block raises, the temporary is removed and ``path`` is untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = temporary_name(path)
+    try:
+        yield tmp
+        _fsync_file(tmp)
+        _replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    fsync_dir(path.parent)
+
+
+@contextmanager
+def atomic_file(path: str | Path) -> Iterator[BinaryIO]:
+    """Open a binary temporary file that replaces ``path`` (after fsync) only if the block completes."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        yield f
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def atomic_write(path: str | Path, *chunks: bytes | memoryview) -> Path:
+    """Write ``chunks`` to ``path`` atomically (see `atomic_file`); return the path."""
+    with atomic_file(path) as f:
+        for chunk in chunks:
+            f.write(chunk)
+    return Path(path)
+
+
+def atomic_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically; return the path."""
+    return atomic_write(path, text.encode())
+
+
+class LockedError(RuntimeError):
+    """Another process holds the lock (the message names its pid and what to do)."""
+
+
+class FileLock:
+    """An exclusive, non-blocking advisory lock on ``path`` (created if needed), held until `release`.
+
+    ``what`` names the locked thing in the refusal message, e.g. "run directory runs/x".
+    """
+
+    def __init__(self, path: str | Path, what: str, advice: str) -> None:
+        self.path, self.what, self.advice = Path(path), what, advice
+        self._fd: int | None = None
+
+    def acquire(self) -> FileLock:
+        """Take the lock or raise `LockedError` naming the holder's pid."""
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as err:
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            if err.errno in (errno.EAGAIN, errno.EACCES):
+                raise LockedError(f"{self.what} is in use by another ecorl process (pid {holder}); "
+                                  f"{self.advice}") from None
+            raise
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        self._fd = fd
+        return self
+
+    def release(self) -> None:
+        """Give the lock up (idempotent); the lock file stays, empty."""
+        if self._fd is not None:
+            os.ftruncate(self._fd, 0)
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def __del__(self) -> None:  # an abandoned holder (e.g. a trainer never closed) frees the lock
+        try:
+            self.release()
+        except Exception:  # at interpreter exit the kernel frees the lock anyway
+            pass
+
+    @property
+    def held(self) -> bool:
+        """True while this object holds the lock."""
+        return self._fd is not None
+
+    def __enter__(self) -> FileLock:
+        return self.acquire()
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+
+PR_SET_PDEATHSIG = 1
+"""Linux prctl option: the signal a process gets when its parent thread dies."""
+
+
+def die_with_parent(sig: int = signal.SIGTERM) -> bool:
+    """Ask Linux to send ``sig`` to this process when its parent dies; False where that is unavailable."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(PR_SET_PDEATHSIG, int(sig), 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
