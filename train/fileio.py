@@ -41,17 +41,9 @@ def is_temporary(name: str) -> bool:
     return name.startswith(".") and TEMP_MARK in name
 
 
-def fsync_dir(path: Path) -> None:
-    """Make a rename inside directory ``path`` durable."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _fsync_file(path: Path) -> None:
-    """Flush a file written by name (by a library) to disk."""
+def fsync_path(path: Path) -> None:
+    """Flush ``path`` to disk: a file written by name (by a library), or a directory, to make a rename
+    inside it durable."""
     fd = os.open(path, os.O_RDONLY)
     try:
         os.fsync(fd)
@@ -70,12 +62,12 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     tmp = temporary_name(path)
     try:
         yield tmp
-        _fsync_file(tmp)
+        fsync_path(tmp)
         _replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    fsync_dir(path.parent)
+    fsync_path(path.parent)
 
 
 @contextmanager
