@@ -20,6 +20,7 @@ import numpy as np
 from tqdm import tqdm
 
 from gridtasks.codes import GROUP, Code
+from gridtasks.env import GridTaskVectorEnv
 from gridtasks.registration import TASKS
 
 SETTINGS: dict[str, tuple[str, dict]] = {
@@ -90,8 +91,6 @@ def measure(task: str, knobs: dict, seeds: int = 32, steps: int = 20_000, seed: 
     random policy for ``steps`` steps; world i is seeded ``seed + i``, the actions by ``seed``."""
     if task not in TASKS:
         raise ValueError(f"unknown grid task {task!r}; choose one of {', '.join(TASKS)}")
-    from gridtasks.env import GridTaskVectorEnv
-
     env = GridTaskVectorEnv(TASKS[task], seeds, copy=False, reset_free=True, reward="sparse", **knobs)
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)

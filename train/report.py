@@ -394,10 +394,15 @@ def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
 # ---- tables --------------------------------------------------------------------------------------------
 
 
+def metric_scale(metric: str) -> tuple[float, str]:
+    """(factor, unit) that shows a metric: success as a percentage, returns as they are."""
+    return (100.0, "%") if metric == "success" else (1.0, "")
+
+
 def summarize(values: np.ndarray, metric: str) -> tuple[str, str]:
     """('mean [95% CI]', 'k / S' seeds learned, or '—' for returns) of one evaluation's per-seed values."""
     mean, low, high = bootstrap_ci(values)
-    scale, unit = (100.0, "%") if metric == "success" else (1.0, "")
+    scale, unit = metric_scale(metric)
     ours = f"{float(mean) * scale:.1f}{unit} [{float(low) * scale:.1f}, {float(high) * scale:.1f}]"
     learned = f"{int((values > LEARNED).sum())} / {values.size}" if metric == "success" else "—"
     return ours, learned
@@ -409,7 +414,7 @@ def final_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
     rows = []
     for run in exp.runs:
         ours, learned = summarize(run.values[-1], run.metric)
-        scale, unit = (100.0, "%") if run.metric == "success" else (1.0, "")
+        scale, unit = metric_scale(run.metric)
         rows.append({"task": run.task, "condition": run.label, "metric": run.metric, "ours": ours,
                      "learned": learned, "seeds": run.seeds, "step": int(run.steps[-1]), "done": run.done,
                      "paper": format_paper(paper_value(paper, run.task, run.condition), scale, unit)})
@@ -417,9 +422,8 @@ def final_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
 
 
 def _milestones(exp: ExperimentResults) -> list[int]:
-    """The experiment's milestone steps: from its experiment.json, else from its current definition."""
-    known = EXPERIMENTS.get(exp.name)
-    return list(exp.info.get("milestones") or (known.milestones if known else []))
+    """The experiment's milestone steps (its info comes from the known definition, see `trusted_info`)."""
+    return list(exp.info.get("milestones", []))
 
 
 def milestone_rows(exp: ExperimentResults) -> list[dict[str, Any]]:

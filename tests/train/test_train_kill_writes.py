@@ -6,7 +6,6 @@ process kills itself (SIGKILL, no clean-up possible) at a chosen moment of a cho
 
 from __future__ import annotations
 
-import csv
 import signal
 import subprocess
 import sys
@@ -14,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from run_metrics import metrics_without_timing
 
 from train.checkpoint import CHECKPOINT_NAME, read_checkpoint
 from train.cli import main
@@ -56,15 +56,6 @@ def train_args(task: str, out: Path) -> list[str]:
             "2000", "--seeds", "2", "--dynamism", "0.5", "--reset-free", "--no-progress", "--out", str(out)]
 
 
-def metrics(run: Path) -> list[dict[str, str]]:
-    """metrics.csv without its wall-clock column."""
-    with open(run / "metrics.csv") as f:
-        rows = list(csv.DictReader(f))
-    for row in rows:
-        row.pop("steps_per_s")
-    return rows
-
-
 @pytest.mark.parametrize("task", ["salad", "foodcollector"])
 def test_kill_during_a_checkpoint_write_keeps_the_previous_one_and_resumes_exactly(task, tmp_path):
     reference, killed = tmp_path / "reference", tmp_path / "killed"
@@ -74,7 +65,7 @@ def test_kill_during_a_checkpoint_write_keeps_the_previous_one_and_resumes_exact
     assert any(is_temporary(p.name) for p in killed.iterdir())  # the half-written temporary
     assert read_checkpoint(killed / CHECKPOINT_NAME, keys=[])["step"] == 400  # the previous one, intact
     assert main([*train_args(task, killed), "--resume"]) == 0
-    assert metrics(killed) == metrics(reference)
+    assert metrics_without_timing(killed) == metrics_without_timing(reference)
     assert np.array_equal(np.load(killed / "visits.npy"), np.load(reference / "visits.npy"))
     assert not any(is_temporary(p.name) for p in killed.iterdir())  # cleared by the resumed run
 

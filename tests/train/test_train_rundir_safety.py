@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import subprocess
@@ -11,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from run_metrics import metrics_without_timing
 
 from train.cli import main
 from train.policy import load_policy_file, save_policy
@@ -22,14 +22,6 @@ TINY = ["--epoch-steps", "200", "--updates-per-epoch", "10", "--eval-every", "20
 
 def _train(out: Path, *extra: str, task: str = "salad") -> int:
     return main(["train", task, "--steps", "400", *TINY, *extra, "--out", str(out)])
-
-
-def _rows(run: Path) -> list[dict[str, str]]:
-    with open(run / "metrics.csv") as f:
-        rows = list(csv.DictReader(f))
-    for row in rows:
-        row.pop("steps_per_s")
-    return rows
 
 
 def _one_line_error(capsys) -> str:
@@ -81,11 +73,12 @@ def test_resume_inherits_every_setting_and_may_grow_the_run(tmp_path, capsys):
                  str(reference)]) == 0
     assert _train(run, "--lr", "0.0003", "--seeds", "2") == 0
     assert main(["train", "salad", "--resume", "--out", str(run)]) == 0  # no flags: nothing changes
-    assert _rows(run)[-1]["step"] == "400"
+    assert metrics_without_timing(run)[-1]["step"] == "400"
     assert main(["train", "salad", "--resume", "--steps", "600", "--out", str(run)]) == 0
     saved = json.loads((run / "config.json").read_text())
     assert saved["run"]["steps"] == 600 and saved["dqn"]["lr"] == 0.0003 and saved["run"]["seeds"] == 2
-    assert _rows(run) == _rows(reference)  # the same as a run asked for 600 steps from the start
+    # the same as a run asked for 600 steps from the start
+    assert metrics_without_timing(run) == metrics_without_timing(reference)
 
 
 @pytest.mark.parametrize(("flags", "message"), [
@@ -102,10 +95,10 @@ def test_resume_refuses_a_change_of_results(finished, flags, message, capsys):
 
 
 def test_a_deleted_metrics_file_is_rebuilt_from_the_checkpoint(finished, capsys):
-    rows = _rows(finished)
+    rows = metrics_without_timing(finished)
     (finished / "metrics.csv").unlink()
     assert main(["train", "salad", "--resume", "--out", str(finished)]) == 0
-    assert _rows(finished) == rows
+    assert metrics_without_timing(finished) == rows
 
 
 # ---- bad input: one line, exit status 2, nothing written -----------------------------------------------
@@ -234,10 +227,10 @@ def test_a_finished_sweep_run_rebuilds_its_deleted_metrics(tmp_path):
     job = plan(get_experiment("rnd"), "smoke", tmp_path, ["factory"])[0]
     assert execute(job).status == "done"
     run = Path(job.run_dir)
-    rows = _rows(run)
+    rows = metrics_without_timing(run)
     (run / "metrics.csv").unlink()
     assert execute(job).status == "skipped"
-    assert _rows(run) == rows
+    assert metrics_without_timing(run) == rows
 
 
 def test_the_checkpoint_is_plain_data_numpy_opens_without_pickle(finished):
