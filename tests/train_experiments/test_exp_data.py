@@ -159,3 +159,15 @@ def test_every_condition_is_evaluated_at_the_test_horizon(tmp_path):
             resolved = resolve(cfg, task, probe(task, cfg.env))
             assert resolved.eval.eval_horizon == SPEC_TEST_HORIZON[job.task], (exp.name, job.condition)
     assert len(seen) > 20
+
+
+def test_tuned_settings_apply_per_task_and_conditions_still_win():
+    """Salad trains at the settings study's learning rate; other tasks keep the original default;
+    a condition that names its own rate (the study's arms) keeps it."""
+    assert TrainConfig().dqn.lr == 1e-4  # the original code's default, unchanged for `ecorl train`
+    dyn = get_experiment("dynamism")
+    lrs = {task: job_config(dyn, task, conds[0], dyn.budget("smoke")).dqn.lr for task, conds in dyn.conditions.items()}
+    assert lrs == {"salad": 3e-4, "hunting": 1e-4, "scavenging": 1e-4, "factory": 1e-4, "foodcollector": 1e-4}
+    settings = get_experiment("settings")
+    arm = next(c for c in settings.conditions["salad"] if c.name == "rf-lr1e-4")
+    assert job_config(settings, "salad", arm, settings.budget("smoke")).dqn.lr == 1e-4
