@@ -171,3 +171,19 @@ def test_tuned_settings_apply_per_task_and_conditions_still_win():
     settings = get_experiment("settings")
     arm = next(c for c in settings.conditions["salad"] if c.name == "rf-lr1e-4")
     assert job_config(settings, "salad", arm, settings.budget("smoke")).dqn.lr == 1e-4
+
+
+def test_headline_waypoint_is_the_headline_with_the_released_reward():
+    """Same conditions and budgets as the headline; only the reward differs. Both headlines' dynamic
+    non-episodic runs share every setting but the length with a settings arm, so they continue it."""
+    plain, waypoint = get_experiment("headline"), get_experiment("headline-waypoint")
+    for a, b in zip(plain.conditions["salad"], waypoint.conditions["salad"], strict=True):
+        assert a.name == b.name and {**a.overrides, "reward": "waypoint"} == b.overrides
+        assert job_config(plain, "salad", a, plain.budget("paper")).env.reward == "sparse"
+    settings = get_experiment("settings")
+    for exp, arm_name in ((plain, "rf-lr3e-4"), (waypoint, "rf-waypoint")):
+        arm = next(c for c in settings.conditions["salad"] if c.name == arm_name)
+        study = job_config(settings, "salad", arm, settings.budget("paper"))
+        long = job_config(exp, "salad", exp.conditions["salad"][3], exp.budget("paper"))
+        assert exp.conditions["salad"][3].name == "dynamic-reset-free"
+        assert long.replace(steps=study.run.steps) == study, arm_name
