@@ -17,7 +17,7 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 demo: setup
-	$(BIN)/ecorl run headline --budget quick --out results --report
+	$(BIN)/ecorl run headline-waypoint --budget quick --out results --report
 
 test: setup
 	$(BIN)/python -m pytest -q
