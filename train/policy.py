@@ -19,11 +19,11 @@ from typing import Any
 import numpy as np
 import torch
 
+from train.agent.network import QNetwork
 from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.config import TrainConfig
 from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
 from train.fileio import atomic_file
-from train.network import QNetwork
 from train.rundir import RunDir, RunDirError
 from train.tasks import get_task, probe
 

@@ -23,12 +23,12 @@ from typing import Any
 import numpy as np
 import torch
 
+from train.agent.dqn import DoubleDQN
+from train.agent.network import QNetwork
+from train.agent.replay import Replay
+from train.agent.rnd import RND
 from train.config import TrainConfig
-from train.dqn import DoubleDQN
 from train.evaluate import Evaluator, evaluation_kwargs
-from train.network import QNetwork
-from train.replay import Replay
-from train.rnd import RND
 from train.rundir import RunDir, RunDirError
 from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state, visit_cells
 

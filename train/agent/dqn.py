@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from train.agent.network import QNetwork
 from train.config import DQNConfig
-from train.network import QNetwork
 
 Tensor = torch.Tensor
 

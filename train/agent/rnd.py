@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 import torch
 
+from train.agent.dqn import FlatAdam
+from train.agent.network import MLP
 from train.config import RNDConfig
-from train.dqn import FlatAdam
-from train.network import MLP
 
 Tensor = torch.Tensor
 

@@ -210,13 +210,13 @@ def run_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 
 def _demo_command(subparsers) -> None:
-    from train.demo import add_demo_command
+    from train.experiments.demo import add_demo_command
 
     add_demo_command(subparsers)
 
 
 def _experiment_commands(subparsers) -> None:
-    from train.commands import SUBCOMMANDS
+    from train.cli.commands import SUBCOMMANDS
 
     for add in SUBCOMMANDS:
         add(subparsers)
@@ -250,5 +250,3 @@ def main(argv: Sequence[str] | None = None) -> int:
     return args.handler(args, args.command_parser)
 
 
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,7 +1,7 @@
 """The ``ecorl`` subcommands ``run``, ``report``, ``measure``, ``video``, ``export`` and ``evaluate``.
 
 Each ``add_<name>_parser(subparsers)`` adds one subcommand whose handler is ``handler(args, parser) -> int``
-(the convention of `train.cli`). ``python -m train.commands ...`` runs them without the rest of the CLI.
+(the convention of `train.cli`). ``python -m train.cli.commands ...`` runs them without the rest of the CLI.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from train.experiments import BUDGETS, EXPERIMENTS, GRID_TASKS, get_experiment
+from train.experiments.catalog import BUDGETS, EXPERIMENTS, GRID_TASKS, get_experiment
 from train.rundir import RunDirError
 
 DEFAULT_OUT = Path("results")
@@ -73,7 +73,7 @@ def add_run_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def _list_experiments() -> None:
-    from train.sweep import plan
+    from train.experiments.sweep import plan
 
     for exp in EXPERIMENTS.values():
         print(f"{exp.name} ({exp.paper}): {exp.title}")
@@ -87,7 +87,7 @@ def _list_experiments() -> None:
 
 def run_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Plan the experiment's runs and execute those not done yet."""
-    from train.sweep import plan, print_plan, run_jobs, summarize, write_experiment_file
+    from train.experiments.sweep import plan, print_plan, run_jobs, summarize, write_experiment_file
 
     if args.list:
         _list_experiments()
@@ -122,7 +122,7 @@ def run_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> in
         print("some runs did not finish; re-run the same command to retry/resume them", file=sys.stderr)
         return 1
     if args.report:
-        from train.report import make_report
+        from train.experiments.report.pages import make_report
 
         try:
             paths = make_report(where)
@@ -157,7 +157,7 @@ def add_report_parser(subparsers) -> argparse.ArgumentParser:
 
 def report_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Write the report and print the paths written."""
-    from train.report import make_report
+    from train.experiments.report.pages import make_report
 
     try:
         paths = make_report(args.dir, args.videos)
@@ -173,7 +173,7 @@ def report_command(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
 
 def add_measure_parser(subparsers) -> argparse.ArgumentParser:
     """``ecorl measure {hitting-time,entropy} --task T [--seeds N] [--steps N] [--out DIR]``."""
-    from train.sweep import MEASUREMENTS
+    from train.experiments.sweep import MEASUREMENTS
 
     parser = subparsers.add_parser(
         "measure", help="Table 1: a random policy's hitting time or view entropy",
@@ -195,7 +195,7 @@ def add_measure_parser(subparsers) -> argparse.ArgumentParser:
 
 def measure_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Measure each requested task, print the table and write it."""
-    from train.sweep import measure_rows, write_measure_table
+    from train.experiments.sweep import measure_rows, write_measure_table
 
     if args.out.exists() and not args.out.is_dir():
         return _error("measure", ValueError(f"--out {args.out} is a file, not a directory; choose a directory path"))
@@ -265,7 +265,7 @@ def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
 
 def video_command(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Render the video and print its path."""
-    from train.video import record_video
+    from train.experiments.video import record_video
 
     try:
         policy, default_out = _video_source(args)
@@ -355,7 +355,7 @@ SUBCOMMANDS = (add_run_parser, add_report_parser, add_measure_parser, add_video_
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """These subcommands as a stand-alone program (``python -m train.commands``)."""
+    """These subcommands as a stand-alone program (``python -m train.cli.commands``)."""
     from train.cli import OneLineParser
 
     parser = OneLineParser(prog="ecorl", description="Ecological reinforcement learning: experiments.")

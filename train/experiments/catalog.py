@@ -22,7 +22,7 @@ Choices the paper leaves open, and where the values come from:
   the original dynamism sweep), factory 0.2 (worker move probability, middle of the original sweep),
   scavenging 0.5 (predators move at random half the time; the original's scratch sweep has no paper value),
   food collector 0.5 (spheres at 5 units/s; our reading, the paper gives no number). The same values as
-  `train.measure.HITTING_CONDITIONS` for the grid tasks.
+  `train.experiments.table1.HITTING_CONDITIONS` for the grid tasks.
 * shaping schedules (Fig. 5, 6, 8): salad ``linear:1:0:280000`` equals the original (40 000, 20 000)
   spawn window on 8x8; scavenging ``linear:1:0:540000`` equals the original (60 000, 30 000) on 10x10;
   walled salad ``linear:1:0:360000`` is the original (60 000, 20 000) on 10x10 opening one cell per

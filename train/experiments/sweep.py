@@ -32,7 +32,7 @@ from typing import Any
 
 from train.checkpoint import CHECKPOINT_NAME
 from train.config import TrainConfig
-from train.experiments import Experiment, job_config
+from train.experiments.catalog import Experiment, job_config
 from train.fileio import atomic_text, die_with_parent, is_temporary
 
 DONE_FILE = "done.json"
@@ -266,8 +266,8 @@ MEASURE_COLUMNS = ("condition", "mean", "std", "seeds", "censored")
 
 
 def measure_rows(kind: str, task: str, seeds: int, steps: int, seed: int = 0) -> list[dict[str, Any]]:
-    """One Table 1 measurement of a grid task (`train.measure`): a row per condition, mean and std over seeds."""
-    from train import measure
+    """One Table 1 measurement of a grid task (`train.experiments.table1`): a row per condition, mean and std."""
+    from train.experiments import table1 as measure
 
     if kind == "hitting-time":
         summaries = measure.hitting_time_table(task, seeds=seeds, max_steps=steps, seed=seed)

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import torch
 
+from train.agent.dqn import DoubleDQN, FlatAdam, clip_grad_norm_per_agent, double_dqn_target
+from train.agent.network import QNetwork
 from train.config import DQNConfig
-from train.dqn import DoubleDQN, FlatAdam, clip_grad_norm_per_agent, double_dqn_target
-from train.network import QNetwork
 
 
 def test_target_uses_online_argmax_and_target_values():

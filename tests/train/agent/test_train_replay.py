@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from train.replay import Replay
+from train.agent.replay import Replay
 
 
 def _binary(rng, k, d):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from train.agent.rnd import RND, RunningMoments
 from train.config import RNDConfig, TrainConfig
-from train.rnd import RND, RunningMoments
 from train.trainer import Trainer
 
 

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from train import commands
+from train.cli import commands
 
 
 def _frames(path) -> int:
@@ -41,7 +41,7 @@ def test_ecorl_cli_has_the_subcommands_once_wired():
     parser = cli.build_parser()
     names = set(parser._subparsers._group_actions[0].choices)
     if "run" not in names:
-        pytest.skip("train/cli.py does not list train.commands' subcommands yet")
+        pytest.skip("train/cli does not list train.cli.commands' subcommands yet")
     assert {"run", "report", "measure", "video"} <= names
 
 
@@ -119,7 +119,7 @@ class _CountingEnv:
 
 
 def test_film_counts_whole_episodes_and_solved_ones():
-    from train.video import film_rollout
+    from train.experiments.video import film_rollout
 
     actions = iter([0, 0, 1, 0, 0, 0, 0, 0, 1])
     film = film_rollout(_CountingEnv(3), lambda obs: next(actions), seed=0, episodes=3)

@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 
 from train.config import TrainConfig
-from train.experiments import BUDGETS, EXPERIMENTS, SHAPING_SCHEDULE, get_experiment, job_config
-from train.sweep import plan
+from train.experiments.catalog import BUDGETS, EXPERIMENTS, SHAPING_SCHEDULE, get_experiment, job_config
+from train.experiments.sweep import plan
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 SPEC_TABLE = {  # name: (paper seeds, {task: steps}) from SPEC's experiment table
     "episodic-vs-reset-free": (10, {"salad": 1_000_000}),

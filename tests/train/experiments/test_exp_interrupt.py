@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from train.checkpoint import CHECKPOINT_NAME, read_checkpoint
-from train.experiments import get_experiment
-from train.sweep import DONE_FILE, execute, plan
+from train.experiments.catalog import get_experiment
+from train.experiments.sweep import DONE_FILE, execute, plan
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 ARGS = ("run", "episodic-vs-reset-free", "--budget", "smoke", "--steps", "4000", "--jobs", "2", "--no-progress")
 DETERMINISTIC = ("step", "seed", "epsilon", "loss", "success", "return", "train_reward")
 """metrics.csv columns that must match exactly (steps_per_s is a timing)."""
@@ -52,7 +52,7 @@ def _checkpoint_step(run_dir: Path) -> int:
 
 def _kill_when_training(out: Path) -> None:
     """Start the sweep in its own process group and SIGKILL the group once a run is part-way through."""
-    proc = subprocess.Popen([sys.executable, "-m", "train.commands", *ARGS, "--out", str(out)], cwd=REPO,
+    proc = subprocess.Popen([sys.executable, "-m", "train.cli.commands", *ARGS, "--out", str(out)], cwd=REPO,
                             start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 240
     try:
@@ -125,7 +125,7 @@ def test_changed_settings_are_refused(tmp_path):
 
 @pytest.mark.parametrize("executor", ["nope"])
 def test_unknown_executor(executor):
-    from train.sweep import run_jobs
+    from train.experiments.sweep import run_jobs
 
     with pytest.raises(ValueError, match="choose local or ray"):
         run_jobs(plan(get_experiment("rnd"), "smoke", "/nonexistent"), executor, progress=False)
@@ -135,7 +135,7 @@ def test_unknown_executor(executor):
 def test_ctrl_c_stops_cleanly_and_the_rerun_resumes(tmp_path, cli):
     out = tmp_path / "ctrl-c"
     args = ("run", "rnd", "--budget", "smoke", "--steps", "20000", "--jobs", "2", "--no-progress", "--out", str(out))
-    proc = subprocess.Popen([sys.executable, "-m", "train.commands", *args], cwd=REPO, start_new_session=True,
+    proc = subprocess.Popen([sys.executable, "-m", "train.cli.commands", *args], cwd=REPO, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 240
     while not list(out.glob("rnd/factory/*/metrics.csv")):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from train import commands
+from train.cli import commands
 from train.policy import (
     POLICY_DIR,
     export_policy,

@@ -8,10 +8,17 @@ import json
 import numpy as np
 import pytest
 
-from train.experiments import get_experiment
-from train.report import bootstrap_ci, format_paper, load_paper, make_report, paper_value, read_metrics
+from train.experiments.catalog import get_experiment
+from train.experiments.report.pages import (
+    bootstrap_ci,
+    format_paper,
+    load_paper,
+    make_report,
+    paper_value,
+    read_metrics,
+)
+from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE
 from train.rundir import METRIC_COLUMNS
-from train.sweep import DONE_FILE, EXPERIMENT_FILE
 
 
 def test_bootstrap_ci_brackets_the_mean():
@@ -110,7 +117,7 @@ def test_report_tabulates_milestones_with_the_seeds_that_learned(tmp_path):
 
 
 def test_quick_curves_are_drawn_over_the_shipped_paper_budget_runs(tmp_path, monkeypatch):
-    import train.report as report
+    import train.experiments.report.pages as report
 
     exp = get_experiment("headline")
     shipped, root = tmp_path / "paper", tmp_path / "results"

@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from train.experiments import EXPERIMENTS
-from train.sweep import DONE_FILE, EXPERIMENT_FILE
+from train.experiments.catalog import EXPERIMENTS
+from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE
 
 EXPECTED_FILES = ("config.json", "metrics.csv", "checkpoint.npz", "visits.npy", DONE_FILE)
 

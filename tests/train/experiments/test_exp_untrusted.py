@@ -18,10 +18,10 @@ import pytest
 
 from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME
 from train.cli import main
-from train.experiments import get_experiment
-from train.sweep import DONE_FILE, EXPERIMENT_FILE, plan, write_experiment_file
+from train.experiments.catalog import get_experiment
+from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE, plan, write_experiment_file
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 class _Exploit:
@@ -142,16 +142,16 @@ def test_the_report_refuses_unknown_conditions(tmp_path):
 def test_concurrent_task_subsets_keep_every_entry_of_experiment_json(tmp_path, monkeypatch):
     from concurrent.futures import ThreadPoolExecutor
 
-    import train.sweep
+    import train.experiments.sweep
 
-    read = train.sweep._read_json
+    read = train.experiments.sweep._read_json
 
     def slow_read(path):  # widen the window between reading experiment.json and replacing it
         data = read(path)
         time.sleep(0.01)
         return data
 
-    monkeypatch.setattr(train.sweep, "_read_json", slow_read)
+    monkeypatch.setattr(train.experiments.sweep, "_read_json", slow_read)
     exp = get_experiment("dynamism")
     subsets = [plan(exp, "smoke", tmp_path, [task]) for task in exp.tasks]
 
@@ -184,7 +184,7 @@ def _alive(pid: int) -> bool:
 def test_workers_stop_when_the_sweep_dies_and_start_nothing_queued(tmp_path, sig):
     out = tmp_path / "out"
     args = ("run", "rnd", "--budget", "smoke", "--steps", "200000", "--jobs", "1", "--no-progress", "--out", str(out))
-    sweep = subprocess.Popen([sys.executable, "-m", "train.commands", *args], cwd=REPO, start_new_session=True,
+    sweep = subprocess.Popen([sys.executable, "-m", "train.cli.commands", *args], cwd=REPO, start_new_session=True,
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120

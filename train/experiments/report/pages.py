@@ -1,6 +1,6 @@
 """Turn a results directory into the paper's pictures and tables, beside the paper's own numbers.
 
-``make_report(DIR)`` reads every experiment directory under DIR (or DIR itself) written by `train.sweep`
+``make_report(DIR)`` reads every experiment directory under DIR (or DIR itself) written by `train.experiments.sweep`
 and writes into DIR:
 
 * ``figures/<experiment>_curves.png``: learning curves, one panel per task, mean and 95% bootstrap CI
@@ -32,12 +32,12 @@ from typing import Any
 import numpy as np
 
 from train.checkpoint import CHECKPOINT_NAME
-from train.experiments import BUDGETS, EXPERIMENTS
+from train.experiments.catalog import BUDGETS, EXPERIMENTS
+from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE
 from train.fileio import atomic_file, atomic_path, atomic_text, is_temporary
-from train.sweep import DONE_FILE, EXPERIMENT_FILE
 
-PAPER_DIR = Path(__file__).resolve().parent.parent / "assets" / "paper"
-REFERENCE_DIR = Path(__file__).resolve().parent.parent / "docs" / "results" / "paper"
+PAPER_DIR = Path(__file__).resolve().parents[3] / "assets" / "paper"
+REFERENCE_DIR = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
 """Shipped paper-budget runs (metrics only): a report draws an experiment's quick curves over them."""
 """Where the paper's transcribed numbers live (``assets/paper`` of the source tree)."""
 CI_LEVEL = 0.95
@@ -153,7 +153,7 @@ class ReportError(ValueError):
 
 def trusted_info(path: Path) -> dict[str, Any]:
     """experiment.json of ``path``, checked against the known experiments: its name, tasks and conditions
-    must be ones `train.experiments` defines (so no name can lead outside the results folder), and every
+    must be ones `train.experiments.catalog` defines (so no name can lead outside the results folder), and every
     text shown comes from the known experiment, not from the file."""
     try:
         saved = json.loads((path / EXPERIMENT_FILE).read_text())
@@ -484,8 +484,8 @@ MEASURE_COLUMNS = (("task", "task"), ("measure", "measurement"), ("condition", "
 
 def render_missing_videos(exp: ExperimentResults) -> list[Path]:
     """Render ``video.mp4`` (seed 0's final policy in the test MDP) for finished runs without one."""
+    from train.experiments.video import record_video
     from train.rundir import RunDirError
-    from train.video import record_video
 
     made = []
     for run in exp.runs:
