@@ -26,6 +26,7 @@ import numba as nb
 import numpy as np
 from numba.core import types as nb_types
 
+from ecology import schedule_value
 from gridtasks.codes import DISPENSES, GROUP, NUM_CODES, PASSABLE, PICKABLE, Code
 
 
@@ -206,19 +207,14 @@ def randint(w, k: int) -> int:
 # ------------------------------------------------------------------------------------------ helpers
 
 
+_schedule_value = nb.njit(cache=True)(schedule_value)
+"""`ecology.schedule_value` compiled for the kernels."""
+
+
 @nb.njit(cache=True)
 def shaping_strength(r, t: float) -> float:
     """Shaping strength s(t) of the rules' piecewise-linear schedule at lifetime step t."""
-    k = r.num_breakpoints
-    bp = r.shaping
-    if t <= bp[0, 0]:
-        return bp[0, 1]
-    for i in range(k - 1):
-        t1 = bp[i + 1, 0]
-        if t < t1:
-            t0 = bp[i, 0]
-            return bp[i, 1] + (bp[i + 1, 1] - bp[i, 1]) * (t - t0) / (t1 - t0)
-    return bp[k - 1, 1]
+    return _schedule_value(r.shaping[: r.num_breakpoints], t)
 
 
 @nb.njit(cache=True)

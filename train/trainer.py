@@ -30,7 +30,7 @@ from train.agent.rnd import RND
 from train.config import TrainConfig
 from train.evaluate import Evaluator, evaluation_kwargs
 from train.rundir import RunDir, RunDirError
-from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state, visit_cells
+from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state
 
 STREAMS = ("init", "explore", "sample", "rnd")
 """The random streams of each seed, spawned from its SeedSequence in this order."""
@@ -151,7 +151,7 @@ class Trainer:
         if ended.any():  # the final observation gets its own slot: it is the last transition's next state
             self.replay.add(ended, self.replay.encode(obs))
         self.autoreset = ended
-        rows, cols = visit_cells(info["agent_pos"], self.info.visit_shape, self.info.grid)
+        rows, cols = self.info.visit_grid.cells(info["agent_pos"])
         self.visits[self._agent_index, rows, cols] += 1
         self.train_reward += reward
         self.obs = obs
