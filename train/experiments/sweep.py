@@ -32,6 +32,7 @@ from typing import Any
 
 from train.checkpoint import CHECKPOINT_NAME
 from train.config import TrainConfig
+from train.experiments import table1
 from train.experiments.catalog import Experiment, job_config
 from train.fileio import atomic_text, die_with_parent, is_temporary
 
@@ -249,53 +250,13 @@ def _run_measurement(job: Job) -> bool:
     run_dir = Path(job.run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     began = time.perf_counter()
-    rows = measure_rows(cfg["measure"], cfg["task"], cfg["seeds"], cfg["steps"])
-    write_measure_table(rows, run_dir / "table", title=f"{cfg['measure']} ({cfg['task']}, {cfg['seeds']} seeds, "
-                        f"{cfg['steps']} steps)")
+    rows = table1.measure_rows(cfg["measure"], cfg["task"], cfg["seeds"], cfg["steps"])
+    title = f"{cfg['measure']} ({cfg['task']}, {cfg['seeds']} seeds, {cfg['steps']} steps)"
+    table1.write_table(cfg["measure"], rows, run_dir / "table", title)
     marker = {"config": cfg, "seconds": round(time.perf_counter() - began, 1),
               "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
     atomic_text(run_dir / DONE_FILE, json.dumps(marker, indent=2) + "\n")
     return True
-
-
-# ---- Table 1 measurements -----------------------------------------------------------------------------
-
-MEASUREMENTS = ("hitting-time", "entropy")
-"""The two measurements of Table 1."""
-MEASURE_COLUMNS = ("condition", "mean", "std", "seeds", "censored")
-
-
-def measure_rows(kind: str, task: str, seeds: int, steps: int, seed: int = 0) -> list[dict[str, Any]]:
-    """One Table 1 measurement of a grid task (`train.experiments.table1`): a row per condition, mean and std."""
-    from train.experiments import table1 as measure
-
-    if kind == "hitting-time":
-        summaries = measure.hitting_time_table(task, seeds=seeds, max_steps=steps, seed=seed)
-    elif kind == "entropy":
-        summaries = measure.entropy_table(task, seeds=seeds, steps=steps, seed=seed)
-    else:
-        raise ValueError(f"unknown measurement {kind!r}; choose one of {', '.join(MEASUREMENTS)}")
-    return [{"condition": s.condition, "mean": s.mean, "std": s.std, "seeds": s.seeds, "censored": s.censored}
-            for s in summaries]
-
-
-def write_measure_table(rows: Sequence[dict[str, Any]], stem: Path, title: str) -> tuple[Path, Path]:
-    """Write ``stem``.csv and ``stem``.md (mean ± std per condition); return both paths."""
-    import csv
-    import io
-
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=MEASURE_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    csv_path, md_path = stem.with_suffix(".csv"), stem.with_suffix(".md")
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    atomic_text(csv_path, buf.getvalue())
-    lines = [f"### {title}", "", "| condition | mean ± std | seeds | censored |", "|---|---|---|---|"]
-    lines += [f"| {r['condition']} | {r['mean']:.1f} ± {r['std']:.1f} | {r['seeds']} | {r['censored']} |"
-              for r in rows]
-    atomic_text(md_path, "\n".join(lines) + "\n")
-    return csv_path, md_path
 
 
 # ---- executors -----------------------------------------------------------------------------------------

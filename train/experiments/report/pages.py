@@ -34,6 +34,7 @@ import numpy as np
 from train.checkpoint import CHECKPOINT_NAME
 from train.experiments.catalog import BUDGETS, EXPERIMENTS
 from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE
+from train.experiments.table1 import format_value
 from train.fileio import atomic_file, atomic_path, atomic_text, is_temporary
 
 PAPER_DIR = Path(__file__).resolve().parents[3] / "assets" / "paper"
@@ -457,10 +458,8 @@ def measurement_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]
     rows = []
     for m in exp.measurements:
         ref = refs.get((m["task"], m["measure"], m["condition"]))
-        digits = 0 if m["measure"] == "hitting-time" else 2
-        censored = f" ({m['censored']} censored)" if m["censored"] else ""
         rows.append({"task": m["task"], "measure": m["measure"], "condition": m["condition"],
-                     "ours": f"{m['mean']:.{digits}f} ± {m['std']:.{digits}f}{censored}", "seeds": m["seeds"],
+                     "ours": format_value(m["measure"], m), "seeds": m["seeds"],
                      "paper": "—" if ref is None else f"= {ref['mean']:g} ± {ref['std']:g} ({ref['figure']})"})
     return rows
 
@@ -475,7 +474,7 @@ def _md_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]
 FINAL_COLUMNS = (("task", "task"), ("condition", "condition"), ("ours", "ours: final mean [95% CI]"),
                  ("learned", f"seeds learned (> {LEARNED:.0%})"), ("seeds", "seeds"), ("step", "at step"),
                  ("paper", "paper"))
-MEASURE_COLUMNS = (("task", "task"), ("measure", "measurement"), ("condition", "condition"),
+MEASUREMENT_COLUMNS = (("task", "task"), ("measure", "measurement"), ("condition", "condition"),
                    ("ours", "ours: mean ± std"), ("seeds", "seeds"), ("paper", "paper"))
 
 
@@ -648,7 +647,7 @@ def write_markdown(root: Path, sections: Sequence[Section]) -> Path:
         if s.milestones:
             lines += _md_table(s.milestones, milestone_columns(s.exp)) + [""]
         if s.measures:
-            lines += _md_table(s.measures, MEASURE_COLUMNS) + [""]
+            lines += _md_table(s.measures, MEASUREMENT_COLUMNS) + [""]
         if s.claims:
             lines += ["What the paper reports:", ""]
             lines += [f"- {c['text']} ({c['figure']}{', ' + c['task'] if c.get('task') else ''})" for c in s.claims]
@@ -688,7 +687,7 @@ def write_html(root: Path, sections: Sequence[Section], videos: Sequence[Path]) 
         if s.milestones:
             parts.append(_html_table(s.milestones, milestone_columns(s.exp)))
         if s.measures:
-            parts.append(_html_table(s.measures, MEASURE_COLUMNS))
+            parts.append(_html_table(s.measures, MEASUREMENT_COLUMNS))
         if s.claims:
             parts.append("<p>What the paper reports:</p><ul>" + "".join(
                 f"<li>{html.escape(c['text'])} ({html.escape(c['figure'])})</li>" for c in s.claims) + "</ul>")
