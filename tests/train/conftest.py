@@ -37,8 +37,8 @@ SMOKE_TASKS = {
 
 
 def run_cli(*args: str, timeout: float = 300, check: bool = True) -> subprocess.CompletedProcess:
-    """``ecorl <args>`` through `train.cli.commands` in a fresh interpreter; returns the finished process."""
-    proc = subprocess.run([sys.executable, "-m", "train.cli.commands", *args], cwd=REPO, capture_output=True,
+    """``ecorl <args>`` through ``python -m train.cli`` in a fresh interpreter; returns the finished process."""
+    proc = subprocess.run([sys.executable, "-m", "train.cli", *args], cwd=REPO, capture_output=True,
                           text=True, timeout=timeout, env={**os.environ, "PYTHONUNBUFFERED": "1"})
     if check and proc.returncode != 0:
         raise AssertionError(f"ecorl {' '.join(args)} exited {proc.returncode}:\n{proc.stdout}\n{proc.stderr}")

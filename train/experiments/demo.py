@@ -72,24 +72,3 @@ def run_demo(out: Path, steps: int = 150, seed: int = 0) -> list[Path]:
     if not ok:
         raise RuntimeError("OpenCV could not encode tasks.png")
     return [*written, atomic_write(out / "tasks.png", png.tobytes())]
-
-
-def add_demo_command(subparsers) -> None:
-    """``ecorl demo [--out DIR] [--steps N]``."""
-    parser = subparsers.add_parser(
-        "demo", help="render a short random-policy MP4 of every task and a picture of them all",
-        description="Render a short MP4 of every task (dynamic, reset-free worlds, uniform random policy) "
-                    "and tasks.png, a still of each side by side.")
-    parser.add_argument("--out", type=Path, default=Path("results/demo"), help="output folder (default: %(default)s)")
-    parser.add_argument("--steps", type=int, default=150, help="steps per video (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of worlds and actions (default: %(default)s)")
-    parser.set_defaults(handler=run_demo_command)
-
-
-def run_demo_command(args, parser) -> int:
-    """Handler of ``ecorl demo``."""
-    if args.steps < 1:
-        parser.error(f"--steps must be at least 1, got {args.steps}")
-    for path in run_demo(args.out, steps=args.steps, seed=args.seed):
-        print(path)
-    return 0

@@ -6,7 +6,9 @@ import dataclasses
 
 import pytest
 
-from train.cli import build_parser, config_from_args, default_run_dir, main
+from train.cli import build_parser, main
+from train.cli.flags import config_from_args
+from train.cli.train import default_run_dir
 from train.config import SECTIONS, DQNConfig, TrainConfig, field_docs
 
 

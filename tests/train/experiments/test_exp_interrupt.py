@@ -52,7 +52,7 @@ def _checkpoint_step(run_dir: Path) -> int:
 
 def _kill_when_training(out: Path) -> None:
     """Start the sweep in its own process group and SIGKILL the group once a run is part-way through."""
-    proc = subprocess.Popen([sys.executable, "-m", "train.cli.commands", *ARGS, "--out", str(out)], cwd=REPO,
+    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *ARGS, "--out", str(out)], cwd=REPO,
                             start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 240
     try:
@@ -135,7 +135,7 @@ def test_unknown_executor(executor):
 def test_ctrl_c_stops_cleanly_and_the_rerun_resumes(tmp_path, cli):
     out = tmp_path / "ctrl-c"
     args = ("run", "rnd", "--budget", "smoke", "--steps", "20000", "--jobs", "2", "--no-progress", "--out", str(out))
-    proc = subprocess.Popen([sys.executable, "-m", "train.cli.commands", *args], cwd=REPO, start_new_session=True,
+    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 240
     while not list(out.glob("rnd/factory/*/metrics.csv")):

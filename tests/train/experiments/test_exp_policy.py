@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from train.cli import commands
+from train import cli
 from train.policy import (
     POLICY_DIR,
     export_policy,
@@ -104,21 +104,21 @@ def test_bad_policy_files_are_refused(run_dir, tmp_path):
 
 def test_export_and_video_commands(run_dir, tmp_path, capsys):
     out = tmp_path / "salad.npz"
-    assert commands.main(["export", str(run_dir), "--out", str(out), "--agent", "1"]) == 0
+    assert cli.main(["export", str(run_dir), "--out", str(out), "--agent", "1"]) == 0
     assert "agent 1" in capsys.readouterr().out
     video = tmp_path / "salad.mp4"
-    assert commands.main(["video", "salad", "--policy", str(out), "--steps", "8", "--out", str(video)]) == 0
+    assert cli.main(["video", "salad", "--policy", str(out), "--steps", "8", "--out", str(video)]) == 0
     assert video.stat().st_size > 0
-    assert commands.main(["video", "hunting", "--policy", str(out), "--out", str(tmp_path / "x.mp4")]) == 2
+    assert cli.main(["video", "hunting", "--policy", str(out), "--out", str(tmp_path / "x.mp4")]) == 2
     assert "trained on 'salad'" in capsys.readouterr().err
-    assert commands.main(["export", str(tmp_path), "--out", str(out)]) == 2
+    assert cli.main(["export", str(tmp_path), "--out", str(out)]) == 2
     assert "not a run directory" in capsys.readouterr().err
-    assert commands.main(["evaluate", str(out), "--rollouts", "5"]) == 0
+    assert cli.main(["evaluate", str(out), "--rollouts", "5"]) == 0
     printed = capsys.readouterr().out
     assert "salad, 5 validation layouts" in printed and "policy (epsilon 0.1)" in printed
     assert "uniform random" in printed
     with pytest.raises(SystemExit):
-        commands.main(["evaluate", str(out), "--epsilon", "1.5"])
+        cli.main(["evaluate", str(out), "--epsilon", "1.5"])
     assert "probability in [0, 1]" in capsys.readouterr().err
 
 
@@ -130,17 +130,17 @@ def test_a_corrupt_checkpoint_is_refused_by_name(run_dir, tmp_path, capsys):
         f.write(b"x" * 100)
     for command in (["export", str(copy), "--out", str(tmp_path / "p.npz")], ["evaluate", str(copy)],
                     ["video", "salad", "--policy", str(copy), "--steps", "2"]):
-        assert commands.main(command) == 2
+        assert cli.main(command) == 2
         assert "corrupt" in capsys.readouterr().err
 
 
 def test_video_defaults_to_the_shipped_policy(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert commands.main(["video", "scavenging", "--steps", "5"]) == 0
+    assert cli.main(["video", "scavenging", "--steps", "5"]) == 0
     written = capsys.readouterr()
     name = "scavenging-trained.mp4" if shipped_policy("scavenging") else "scavenging-random.mp4"
     assert written.out.strip() == name and (tmp_path / name).exists()
-    assert commands.main(["video", "foodcollector", "--steps", "3"]) == 0
+    assert cli.main(["video", "foodcollector", "--steps", "3"]) == 0
     assert "no trained policy for foodcollector" in capsys.readouterr().err
 
 

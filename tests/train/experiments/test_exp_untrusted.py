@@ -184,7 +184,7 @@ def _alive(pid: int) -> bool:
 def test_workers_stop_when_the_sweep_dies_and_start_nothing_queued(tmp_path, sig):
     out = tmp_path / "out"
     args = ("run", "rnd", "--budget", "smoke", "--steps", "200000", "--jobs", "1", "--no-progress", "--out", str(out))
-    sweep = subprocess.Popen([sys.executable, "-m", "train.cli.commands", *args], cwd=REPO, start_new_session=True,
+    sweep = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120
