@@ -9,14 +9,10 @@ import numpy as np
 import pytest
 
 from train.experiments.catalog import get_experiment
-from train.experiments.report.pages import (
-    bootstrap_ci,
-    format_paper,
-    load_paper,
-    make_report,
-    paper_value,
-    read_metrics,
-)
+from train.experiments.report import make_report
+from train.experiments.report.paper import format_paper, load_paper, paper_value
+from train.experiments.report.runs import read_metrics
+from train.experiments.report.stats import bootstrap_ci
 from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE
 from train.rundir import METRIC_COLUMNS
 
@@ -117,7 +113,7 @@ def test_report_tabulates_milestones_with_the_seeds_that_learned(tmp_path):
 
 
 def test_quick_curves_are_drawn_over_the_shipped_paper_budget_runs(tmp_path, monkeypatch):
-    import train.experiments.report.pages as report
+    import train.experiments.report.runs as report
 
     exp = get_experiment("headline")
     shipped, root = tmp_path / "paper", tmp_path / "results"

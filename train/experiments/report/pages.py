@@ -1,4 +1,4 @@
-"""Turn a results directory into the paper's pictures and tables, beside the paper's own numbers.
+"""The report's pages: ``report.md`` and ``index.html`` for a results directory, and `make_report`.
 
 ``make_report(DIR)`` reads every experiment directory under DIR (or DIR itself) written by `train.experiments.sweep`
 and writes into DIR:
@@ -16,555 +16,33 @@ and writes into DIR:
 
 from __future__ import annotations
 
-import csv
 import html
-import json
-import math
-import os
-import sys
-import textwrap
 from collections.abc import Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from train.checkpoint import CHECKPOINT_NAME
-from train.experiments.catalog import BUDGETS, EXPERIMENTS
-from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE
-from train.experiments.table1 import format_value
-from train.fileio import atomic_file, atomic_path, atomic_text, is_temporary
-
-PAPER_DIR = Path(__file__).resolve().parents[3] / "assets" / "paper"
-REFERENCE_DIR = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
-"""Shipped paper-budget runs (metrics only): a report draws an experiment's quick curves over them."""
-"""Where the paper's transcribed numbers live (``assets/paper`` of the source tree)."""
-CI_LEVEL = 0.95
-BOOTSTRAP_SAMPLES = 2000
-HEATMAP_POINTS = 4
-LEARNED = 0.2
-"""A seed 'learned' the task when it solves more than this fraction of the validation layouts (outcomes are
-bimodal: a seed finds the task or it does not)."""
-MILESTONE_TOLERANCE = 5_000
-"""An evaluation stands for a milestone step when it lies within this many steps of it."""
-"""Points of training shown in each heat-map row (the paper's Fig. 9-10 show four)."""
-
-
-# ---- statistics ----------------------------------------------------------------------------------------
-
-
-def bootstrap_ci(values: np.ndarray, level: float = CI_LEVEL, samples: int = BOOTSTRAP_SAMPLES,
-                 seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Mean over the last axis (seeds) and its percentile-bootstrap confidence interval.
-
-    ``values`` is (..., seeds); returns (mean, low, high), each of shape (...). With one seed the
-    interval collapses onto the value.
-    """
-    values = np.asarray(values, dtype=np.float64)
-    n = values.shape[-1]
-    mean = values.mean(-1)
-    if n < 2:
-        return mean, mean.copy(), mean.copy()
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(0, n, size=(samples, n))
-    boots = values[..., idx].mean(-1)  # (..., samples)
-    tail = (1.0 - level) / 2.0 * 100.0
-    low, high = np.percentile(boots, [tail, 100.0 - tail], axis=-1)
-    return mean, low, high
-
-
-# ---- reading runs --------------------------------------------------------------------------------------
-
-
-@dataclass
-class Run:
-    """The evaluations of one condition (all seeds) read from its run directory."""
-
-    task: str
-    condition: str
-    label: str
-    path: Path
-    metric: str
-    steps: np.ndarray
-    """(E,) environment steps of the evaluations."""
-    values: np.ndarray
-    """(E, S) metric per evaluation and seed."""
-    done: bool
-
-    @property
-    def seeds(self) -> int:
-        """Number of seeds."""
-        return self.values.shape[1]
-
-
-@dataclass
-class ExperimentResults:
-    """What one experiment directory holds."""
-
-    name: str
-    path: Path
-    info: dict[str, Any]
-    runs: list[Run] = field(default_factory=list)
-    measurements: list[dict[str, Any]] = field(default_factory=list)
-    """Table 1 rows: task, measure, condition, mean, std, seeds, censored."""
-
-    @property
-    def tasks(self) -> list[str]:
-        """Tasks with results, in the experiment's panel order."""
-        order = list(self.info.get("tasks", {}))
-        present = {r.task for r in self.runs} | {m["task"] for m in self.measurements}
-        return [t for t in order if t in present] + sorted(present - set(order))
-
-
-def task_metric(task: str) -> str:
-    """'success' or 'return' (the food collector's metric)."""
-    from train.tasks import TASKS
-
-    return TASKS[task].metric if task in TASKS else "success"
-
-
-def read_metrics(path: Path, metric: str) -> tuple[np.ndarray, np.ndarray]:
-    """(steps (E,), values (E, S)) of a metrics.csv; evaluations missing a seed are dropped."""
-    by_step: dict[int, dict[int, float]] = {}
-    with open(path, newline="") as f:
-        for row in csv.DictReader(f):
-            by_step.setdefault(int(row["step"]), {})[int(row["seed"])] = float(row[metric])
-    if not by_step:
-        return np.zeros(0, dtype=np.int64), np.zeros((0, 0))
-    seeds = sorted(set().union(*by_step.values()))
-    steps = sorted(s for s, vals in by_step.items() if len(vals) == len(seeds))
-    values = np.array([[by_step[s][k] for k in seeds] for s in steps], dtype=np.float64).reshape(len(steps), -1)
-    return np.array(steps, dtype=np.int64), values
-
-
-def find_experiment_dirs(root: Path) -> list[Path]:
-    """``root`` if it is an experiment directory, else the experiment directories right below it."""
-    if (root / EXPERIMENT_FILE).exists():
-        return [root]
-    order = list(EXPERIMENTS)
-    found = [p.parent for p in root.glob(f"*/{EXPERIMENT_FILE}")]
-    return sorted(found, key=lambda p: (order.index(p.name) if p.name in order else len(order), p.name))
-
-
-class ReportError(ValueError):
-    """A results directory the report refuses to read (the message says why)."""
-
-
-def trusted_info(path: Path) -> dict[str, Any]:
-    """experiment.json of ``path``, checked against the known experiments: its name, tasks and conditions
-    must be ones `train.experiments.catalog` defines (so no name can lead outside the results folder), and every
-    text shown comes from the known experiment, not from the file."""
-    try:
-        saved = json.loads((path / EXPERIMENT_FILE).read_text())
-    except ValueError as err:
-        raise ReportError(f"{path / EXPERIMENT_FILE} is not valid JSON ({err})") from None
-    name = saved.get("name") if isinstance(saved, dict) else None
-    if not isinstance(name, str) or name not in EXPERIMENTS:
-        raise ReportError(f"{path / EXPERIMENT_FILE} names an unknown experiment {name!r}; the report reads only "
-                          f"experiments written by ecorl run ({', '.join(EXPERIMENTS)})")
-    known = EXPERIMENTS[name]
-    tasks = saved.get("tasks", {})
-    if not isinstance(tasks, dict):
-        raise ReportError(f"{path / EXPERIMENT_FILE}: 'tasks' is not an object")
-    for task, conds in tasks.items():
-        allowed = {c.name for c in known.conditions.get(task, ())}
-        names = [c.get("name") if isinstance(c, dict) else c for c in conds] if isinstance(conds, list) else [conds]
-        bad = [n for n in names if n not in allowed]
-        if task not in known.conditions or bad:
-            what = f"task {task!r}" if task not in known.conditions else f"condition(s) {bad!r} of {task}"
-            raise ReportError(f"{path / EXPERIMENT_FILE} names {what}, which experiment {name!r} does not have")
-    info = known.describe()
-    info["tasks"] = {t: c for t, c in info["tasks"].items() if t in tasks}
-    budget = saved.get("budget")
-    info["budget"] = budget if budget in BUDGETS else "?"
-    return info
-
-
-def load_experiment(path: Path) -> ExperimentResults:
-    """Read the runs (or measurements) of one experiment directory."""
-    info = trusted_info(path)
-    result = ExperimentResults(info["name"], path, info)
-    for task, conds in info.get("tasks", {}).items():
-        for cond in conds:
-            run_dir = path / task / cond["name"]
-            if cond.get("measure"):
-                table = run_dir / "table.csv"
-                if table.exists():
-                    with open(table, newline="") as f:
-                        for row in csv.DictReader(f):
-                            result.measurements.append({
-                                "task": task, "measure": cond["measure"], "condition": row["condition"],
-                                "mean": float(row["mean"]), "std": float(row["std"]), "seeds": int(row["seeds"]),
-                                "censored": int(row["censored"])})
-                continue
-            metrics = run_dir / "metrics.csv"
-            if not metrics.exists():
-                continue
-            metric = task_metric(task)
-            steps, values = read_metrics(metrics, metric)
-            if len(steps):
-                result.runs.append(Run(task, cond["name"], cond["label"], run_dir, metric, steps, values,
-                                       (run_dir / DONE_FILE).exists()))
-    return result
-
-
-def load_reference(exp: ExperimentResults, reference_dir: Path | None = None) -> ExperimentResults | None:
-    """The shipped paper-budget runs of ``exp``'s experiment (under `REFERENCE_DIR` unless given), or None
-    (none shipped, or ``exp`` is them)."""
-    path = (reference_dir or REFERENCE_DIR) / exp.name
-    if not (path / EXPERIMENT_FILE).exists() or path.resolve() == exp.path.resolve():
-        return None
-    reference = load_experiment(path)
-    return reference if reference.runs else None
-
-
-# ---- the paper's numbers -------------------------------------------------------------------------------
-
-
-def load_paper(paper_dir: Path = PAPER_DIR) -> dict[str, dict[str, list[dict[str, Any]]]]:
-    """experiment -> {'values': [...], 'claims': [...], 'sources': [...]} from ``assets/paper/*.json``."""
-    out: dict[str, dict[str, list[dict[str, Any]]]] = {}
-    if not paper_dir.is_dir():
-        return out
-    for path in sorted(paper_dir.glob("*.json")):
-        data = json.loads(path.read_text())
-        for exp in data.get("experiments", []):
-            entry = out.setdefault(exp, {"values": [], "claims": [], "sources": []})
-            entry["values"] += [{**v, "figure": data["figure"]} for v in data.get("values", [])]
-            entry["claims"] += [{**c, "figure": data["figure"]} for c in data.get("claims", [])
-                                if c.get("experiment", exp) == exp]
-            entry["sources"].append({"figure": data["figure"], "source": data.get("source", ""),
-                                     "note": data.get("note", "")})
-    return out
-
-
-def paper_value(paper: dict, task: str, condition: str) -> dict[str, Any] | None:
-    """The paper's reported final value of a condition, if any."""
-    for v in paper.get("values", []):
-        if v.get("task") == task and v.get("condition") == condition and "value" in v:
-            return v
-    return None
-
-
-def format_paper(v: dict[str, Any] | None, scale: float = 100.0, unit: str = "%") -> str:
-    """'≈ 12%' for approximate values, '= 12%' for exact ones, '—' when the paper has none."""
-    if v is None:
-        return "—"
-    mark = "≈" if v.get("approximate", True) else "="
-    return f"{mark} {v['value'] * scale:.0f}{unit} ({v['figure']})"
-
-
-# ---- figures -------------------------------------------------------------------------------------------
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _reference_label(reference: ExperimentResults) -> str:
-    seeds = sorted({r.seeds for r in reference.runs})
-    steps = max(int(r.steps[-1]) for r in reference.runs)
-    return f"shipped run, {'/'.join(map(str, seeds))} seeds × {steps / 1e6:.2g} M steps (dashed)"
-
-
-def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
-                reference: ExperimentResults | None = None) -> Path | None:
-    """One panel per task: mean and 95% CI over seeds of every condition, each seed as a thin line; the
-    paper's values dotted; the same conditions of a ``reference`` experiment (shipped paper-budget runs)
-    dashed, so a short run shows where its curves are heading."""
-    tasks = [t for t in exp.tasks if any(r.task == t for r in exp.runs)]
-    if not tasks:
-        return None
-    plt = _pyplot()
-    ncols = min(len(tasks), 5)
-    nrows = math.ceil(len(tasks) / ncols)
-    width = max(4.2 * ncols, 7.5)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(width, 3.4 * nrows + 1.2), squeeze=False,
-                             layout="constrained")
-    palette = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    names = list(dict.fromkeys(r.condition for r in exp.runs))  # one color per condition, in every panel
-    color_of = {name: palette[i % len(palette)] for i, name in enumerate(names)}
-    labels = {r.condition: set() for r in exp.runs}
-    for r in exp.runs:
-        labels[r.condition].add(r.label)
-    shared_legend = all(len(v) == 1 for v in labels.values())  # else each panel gets its own legend
-    handles: dict[str, Any] = {}
-    has_paper = False
-    for ax, task in zip(axes.flat, tasks):
-        runs = [r for r in exp.runs if r.task == task]
-        for run in runs:
-            color = color_of[run.condition]
-            mean, low, high = bootstrap_ci(run.values)
-            ax.plot(run.steps, run.values, color=color, lw=0.5, alpha=0.35)  # each seed: the bimodality
-            (line,) = ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
-            ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
-            handles.setdefault(run.label, line)
-            for old in (reference.runs if reference else []):
-                if old.task == task and old.condition == run.condition:
-                    ax.plot(old.steps, bootstrap_ci(old.values)[0], color=color, lw=1.2, ls="--")
-            ref = paper_value(paper, task, run.condition)
-            if ref is not None:
-                ax.axhline(ref["value"], color=color, ls=":", lw=1.3)
-                has_paper = True
-        metric = runs[0].metric
-        ax.set_title(task)
-        ax.set_xlabel("environment steps")
-        ax.set_ylabel("fraction of validation tasks solved" if metric == "success" else "mean validation return")
-        if metric == "success":
-            ax.set_ylim(-0.03, 1.03)
-        ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 3))
-        ax.grid(alpha=0.3)
-        if not shared_legend:
-            ax.legend(fontsize=7, frameon=False, loc="upper left")
-    for ax in list(axes.flat)[len(tasks):]:
-        ax.set_visible(False)
-    if not shared_legend:
-        handles = {}
-    if has_paper:
-        from matplotlib.lines import Line2D
-
-        handles["paper's final value (dotted; ≈, quoted in its text)"] = Line2D([], [], color="gray", ls=":")
-    if reference is not None:
-        from matplotlib.lines import Line2D
-
-        handles[_reference_label(reference)] = Line2D([], [], color="gray", ls="--")
-    if handles:
-        legend_cols = max(1, min(len(handles), int(width // 3.6)))
-        fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=legend_cols,
-                   frameon=False, fontsize=9)
-    seeds = sorted({r.seeds for r in exp.runs})
-    title = (f"{exp.info.get('paper', '')}: {exp.info.get('title', exp.name)} (mean and {CI_LEVEL:.0%} bootstrap "
-             f"CI over {'/'.join(map(str, seeds))} seeds; thin lines: single seeds)")
-    fig.suptitle(textwrap.fill(title, int(width * 11)), fontsize=11)
-    _save_figure(fig, out, dpi=110)
-    return out
-
-
-def _save_figure(fig, out: Path, dpi: int) -> None:
-    """Write a figure as PNG atomically and close it."""
-    try:
-        with atomic_file(out) as f:
-            fig.savefig(f, format="png", dpi=dpi)
-    finally:
-        _pyplot().close(fig)
-
-
-def visit_snapshots(run_dir: Path, points: int = HEATMAP_POINTS) -> list[tuple[int, np.ndarray]]:
-    """Up to ``points`` evenly spaced (step, counts summed over seeds) snapshots of a run's visitation."""
-    files = sorted((run_dir / "visits").glob("*.npy"), key=lambda p: int(p.stem))
-    if not files:
-        return []
-    picks = sorted(set(np.round(np.linspace(0, len(files) - 1, points)).astype(int)))
-    return [(int(files[i].stem), np.load(files[i]).sum(0)) for i in picks]
-
-
-def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
-    """Rows: conditions; columns: four points of training; cumulative visit counts summed over seeds."""
-    rows = [(r, visit_snapshots(r.path)) for r in exp.runs if r.task == task]
-    rows = [(r, snaps) for r, snaps in rows if snaps]
-    if not rows:
-        return None
-    plt = _pyplot()
-    ncols = max(len(s) for _, s in rows)
-    fig, axes = plt.subplots(len(rows), ncols, figsize=(2.3 * ncols + 1.6, 2.3 * len(rows) + 0.6), squeeze=False,
-                             layout="constrained")
-    for (run, snaps), axrow in zip(rows, axes):
-        for ax, (step, counts) in zip(axrow, snaps):
-            ax.imshow(counts, cmap="viridis", interpolation="nearest")
-            ax.set_title(f"step {step:,}", fontsize=8)
-            ax.set_xticks([])
-            ax.set_yticks([])
-        axrow[0].set_ylabel(run.label, fontsize=8)
-        for ax in axrow[len(snaps):]:
-            ax.set_visible(False)
-    width = 2.3 * ncols + 1.6
-    title = (f"{exp.info.get('paper', '')}: state visitation counts on {task} (cumulative, summed over seeds; "
-             f"yellow = often, purple = rarely)")
-    fig.suptitle(textwrap.fill(title, int(width * 13)), fontsize=9)
-    _save_figure(fig, out, dpi=100)
-    return out
-
-
-# ---- tables --------------------------------------------------------------------------------------------
-
-
-def metric_scale(metric: str) -> tuple[float, str]:
-    """(factor, unit) that shows a metric: success as a percentage, returns as they are."""
-    return (100.0, "%") if metric == "success" else (1.0, "")
-
-
-def summarize(values: np.ndarray, metric: str) -> tuple[str, str]:
-    """('mean [95% CI]', 'k / S' seeds learned, or '—' for returns) of one evaluation's per-seed values."""
-    mean, low, high = bootstrap_ci(values)
-    scale, unit = metric_scale(metric)
-    ours = f"{float(mean) * scale:.1f}{unit} [{float(low) * scale:.1f}, {float(high) * scale:.1f}]"
-    learned = f"{int((values > LEARNED).sum())} / {values.size}" if metric == "success" else "—"
-    return ours, learned
-
-
-def final_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
-    """Per condition: last evaluation's mean and 95% CI over seeds and the seeds that learned, beside the
-    paper's value."""
-    rows = []
-    for run in exp.runs:
-        ours, learned = summarize(run.values[-1], run.metric)
-        scale, unit = metric_scale(run.metric)
-        rows.append({"task": run.task, "condition": run.label, "metric": run.metric, "ours": ours,
-                     "learned": learned, "seeds": run.seeds, "step": int(run.steps[-1]), "done": run.done,
-                     "paper": format_paper(paper_value(paper, run.task, run.condition), scale, unit)})
-    return rows
-
-
-def _milestones(exp: ExperimentResults) -> list[int]:
-    """The experiment's milestone steps (its info comes from the known definition, see `trusted_info`)."""
-    return list(exp.info.get("milestones", []))
-
-
-def milestone_rows(exp: ExperimentResults) -> list[dict[str, Any]]:
-    """Per condition and milestone step of the experiment (``info['milestones']``): the evaluation closest
-    to it (within `MILESTONE_TOLERANCE`), mean [95% CI] and seeds learned; '—' where the run has not reached
-    it."""
-    milestones = _milestones(exp)
-    rows = []
-    for run in exp.runs:
-        row = {"task": run.task, "condition": run.label}
-        for m in milestones:
-            distance = np.abs(run.steps - m)
-            if distance.size and distance.min() <= MILESTONE_TOLERANCE:
-                ours, learned = summarize(run.values[int(distance.argmin())], run.metric)
-                row[f"at{m}"] = f"{ours}; learned {learned}"
-            else:
-                row[f"at{m}"] = "—"
-        rows.append(row)
-    return rows if milestones else []
-
-
-def milestone_columns(exp: ExperimentResults) -> tuple[tuple[str, str], ...]:
-    """The (key, header) columns of `milestone_rows`."""
-    heads = [(f"at{m}", f"at {m:,} steps: mean [95% CI]; seeds > {LEARNED:.0%}") for m in _milestones(exp)]
-    return (("task", "task"), ("condition", "condition"), *heads)
-
-
-def measurement_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
-    """Table 1 rows: ours (mean ± std over seeds) beside the paper's exact values."""
-    refs = {(v["task"], v.get("measure"), v["condition"]): v for v in paper.get("values", [])}
-    rows = []
-    for m in exp.measurements:
-        ref = refs.get((m["task"], m["measure"], m["condition"]))
-        rows.append({"task": m["task"], "measure": m["measure"], "condition": m["condition"],
-                     "ours": format_value(m["measure"], m), "seeds": m["seeds"],
-                     "paper": "—" if ref is None else f"= {ref['mean']:g} ± {ref['std']:g} ({ref['figure']})"})
-    return rows
-
-
-def _md_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]) -> list[str]:
-    """A markdown table of ``rows`` with (key, header) columns."""
-    out = ["| " + " | ".join(h for _, h in columns) + " |", "|" + "---|" * len(columns)]
-    out += ["| " + " | ".join(str(r[k]) for k, _ in columns) + " |" for r in rows]
-    return out
-
-
-FINAL_COLUMNS = (("task", "task"), ("condition", "condition"), ("ours", "ours: final mean [95% CI]"),
-                 ("learned", f"seeds learned (> {LEARNED:.0%})"), ("seeds", "seeds"), ("step", "at step"),
-                 ("paper", "paper"))
-MEASUREMENT_COLUMNS = (("task", "task"), ("measure", "measurement"), ("condition", "condition"),
-                   ("ours", "ours: mean ± std"), ("seeds", "seeds"), ("paper", "paper"))
-
-
-# ---- videos --------------------------------------------------------------------------------------------
-
-
-def render_missing_videos(exp: ExperimentResults) -> list[Path]:
-    """Render ``video.mp4`` (seed 0's final policy in the test MDP) for finished runs without one."""
-    from train.experiments.video import record_video
-    from train.rundir import RunDirError
-
-    made = []
-    for run in exp.runs:
-        target = run.path / "video.mp4"
-        if run.done and not target.exists() and (run.path / CHECKPOINT_NAME).exists():
-            try:
-                made.append(record_video(None, target, policy_path=run.path).path)
-            except (RunDirError, ValueError, FileNotFoundError) as err:
-                print(f"ecorl report: no video of {run.path}: {err}", file=sys.stderr)
-    return made
-
-
-def find_videos(root: Path) -> list[Path]:
-    """Every MP4 below ``root`` (run directories and the top level), sorted."""
-    return sorted(p for p in root.rglob("*.mp4") if ".partial" not in p.name and not is_temporary(p.name))
-
-
-@contextmanager
-def _quiet_stderr():
-    """Silence the process's stderr (file descriptor 2, so C libraries too) inside the block."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 2)
-            yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-
-
-def web_copy(video: Path, out_dir: Path, root: Path) -> Path | None:
-    """A WebM (VP8) copy of an MP4 for the HTML page (OpenCV's MP4 codec does not play in browsers)."""
-    import cv2
-
-    name = "_".join(video.relative_to(root).with_suffix("").parts) + ".webm"
-    target = out_dir / name
-    if target.exists() and target.stat().st_mtime >= video.stat().st_mtime:
-        return target
-    cap = cv2.VideoCapture(str(video))
-    try:
-        with atomic_path(target) as tmp:
-            if not _transcode(cap, tmp):
-                raise _NoFrames
-    except _NoFrames:
-        return None
-    finally:
-        cap.release()
-    return target
-
-
-class _NoFrames(Exception):
-    """A video that could not be read or re-encoded (its web copy is skipped)."""
-
-
-def _transcode(cap, out: Path) -> bool:
-    """Re-encode every frame of an opened capture to a VP8 WebM at ``out``; False if nothing was written."""
-    import cv2
-
-    fps = cap.get(cv2.CAP_PROP_FPS) or 8.0
-    writer = None
-    try:
-        while True:
-            ok, frame = cap.read()
-            if not ok:
-                break
-            if writer is None:
-                with _quiet_stderr():  # FFMPEG names its tag fallback on stderr; the file is fine
-                    writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"VP80"), fps,
-                                             (frame.shape[1], frame.shape[0]))
-                if not writer.isOpened():
-                    return False
-            writer.write(frame)
-    finally:
-        if writer is not None:
-            writer.release()
-    return writer is not None
-
-
-# ---- the report ----------------------------------------------------------------------------------------
+from train.experiments.catalog import EXPERIMENTS
+from train.experiments.report.figures import plot_curves, plot_heatmaps, reference_label
+from train.experiments.report.paper import load_paper
+from train.experiments.report.runs import (
+    ExperimentResults,
+    ReportError,
+    find_experiment_dirs,
+    load_experiment,
+    load_reference,
+)
+from train.experiments.report.tables import (
+    FINAL_COLUMNS,
+    MEASUREMENT_COLUMNS,
+    final_rows,
+    measurement_rows,
+    milestone_columns,
+    milestone_rows,
+)
+from train.experiments.report.webvideo import find_videos, render_missing_videos, web_copy
+from train.experiments.sweep import EXPERIMENT_FILE
+from train.fileio import atomic_text
 
 
 @dataclass
@@ -620,6 +98,13 @@ def _budget_line(exp: ExperimentResults) -> str:
     return f"Budget: `{budget}`{paper_seeds}. Directory: `{_shown(exp.path)}`."
 
 
+def _md_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]) -> list[str]:
+    """A markdown table of ``rows`` with (key, header) columns."""
+    out = ["| " + " | ".join(h for _, h in columns) + " |", "|" + "---|" * len(columns)]
+    out += ["| " + " | ".join(str(r[k]) for k, _ in columns) + " |" for r in rows]
+    return out
+
+
 def write_markdown(root: Path, sections: Sequence[Section]) -> Path:
     """``report.md``: per experiment its figures, final results beside the paper's, and the paper's claims."""
     lines = [f"# ecorl report: `{_shown(root)}`", "",
@@ -634,7 +119,7 @@ def write_markdown(root: Path, sections: Sequence[Section]) -> Path:
         if s.curves:
             lines += [f"![learning curves]({s.curves.relative_to(root).as_posix()})", ""]
         if s.curves and s.reference:
-            lines += [f"Dashed: the mean of the {_reference_label(s.reference).replace(' (dashed)', '')} shipped in "
+            lines += [f"Dashed: the mean of the {reference_label(s.reference).replace(' (dashed)', '')} shipped in "
                       f"`{_shown(s.reference.path)}` (re-draw it with `ecorl report {_shown(s.reference.path)}`).", ""]
         for h in s.heatmaps:
             lines += [f"![visitation heat-maps]({h.relative_to(root).as_posix()})", ""]
