@@ -279,10 +279,10 @@ def _settings_conditions() -> tuple[Condition, ...]:
     )
 
 
-def _experiments() -> dict[str, Experiment]:
+def _salad_experiments() -> list[Experiment]:
+    """The salad-only experiments: the headline, the settings study and Fig. 2."""
     salad_dyn = _dynamism_conditions("salad")
-    shaping_steps = dict.fromkeys(PAPER_TASKS, 1_250_000)
-    exps = [
+    return [
         Experiment(
             "headline", "Fig. 4 (salad panel)", "Salad: dynamism and resets",
             "Salad-making trained static or dynamic (p = 0.1), episodic or non-episodic; the README's "
@@ -302,6 +302,13 @@ def _experiments() -> dict[str, Experiment]:
             "Static salad-making with and without resets; heat-maps of where the agent spends its life.",
             {"salad": (salad_dyn[0], salad_dyn[1])}, {"salad": 1_000_000}, 10,
             {"smoke": SMOKE, "quick": _quick(3, 250_000)}, heatmaps=True),
+    ]
+
+
+def _task_experiments() -> list[Experiment]:
+    """The experiments over several tasks: Fig. 4, 5, 6, 8-10 and Table 1."""
+    shaping_steps = dict.fromkeys(PAPER_TASKS, 1_250_000)
+    return [
         Experiment(
             "dynamism", "Fig. 4", "Dynamism and resets on every task",
             "Per task: {static, dynamic} x {episodic, non-episodic}; evaluation on the static episodic test MDP.",
@@ -348,7 +355,11 @@ def _experiments() -> dict[str, Experiment]:
             dict.fromkeys(GRID_TASKS, 50_000), 25,
             {"smoke": Budget(3, 2_000, eval_every=500), "quick": Budget(10, 20_000, eval_every=500)}),
     ]
-    return {e.name: e for e in exps}
+
+
+def _experiments() -> dict[str, Experiment]:
+    """Every experiment by name, in the order ``ecorl run --list`` shows them."""
+    return {e.name: e for e in (*_salad_experiments(), *_task_experiments())}
 
 
 EXPERIMENTS: Mapping[str, Experiment] = MappingProxyType(_experiments())

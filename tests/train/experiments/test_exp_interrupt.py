@@ -16,7 +16,8 @@ import pytest
 
 from train.checkpoint import CHECKPOINT_NAME, read_checkpoint
 from train.experiments.catalog import get_experiment
-from train.experiments.sweep import DONE_FILE, execute, plan
+from train.experiments.jobs import DONE_FILE, execute
+from train.experiments.sweep import plan
 
 REPO = Path(__file__).resolve().parents[3]
 ARGS = ("run", "episodic-vs-reset-free", "--budget", "smoke", "--steps", "4000", "--jobs", "2", "--no-progress")

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 
 from train.experiments.catalog import get_experiment
+from train.experiments.jobs import DONE_FILE
 from train.experiments.report import make_report
 from train.experiments.report.paper import format_paper, load_paper, paper_value
 from train.experiments.report.runs import read_metrics
 from train.experiments.report.stats import bootstrap_ci
-from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE
+from train.experiments.sweep import EXPERIMENT_FILE
 from train.rundir import METRIC_COLUMNS
 
 

@@ -8,7 +8,8 @@ import json
 import pytest
 
 from train.experiments.catalog import EXPERIMENTS
-from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE
+from train.experiments.jobs import DONE_FILE
+from train.experiments.sweep import EXPERIMENT_FILE
 
 EXPECTED_FILES = ("config.json", "metrics.csv", "checkpoint.npz", "visits.npy", DONE_FILE)
 

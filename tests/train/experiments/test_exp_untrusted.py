@@ -19,7 +19,8 @@ import pytest
 from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME
 from train.cli import main
 from train.experiments.catalog import get_experiment
-from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE, plan, write_experiment_file
+from train.experiments.jobs import DONE_FILE
+from train.experiments.sweep import EXPERIMENT_FILE, plan, write_experiment_file
 
 REPO = Path(__file__).resolve().parents[3]
 

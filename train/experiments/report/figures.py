@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from train.experiments.report.paper import paper_value
-from train.experiments.report.runs import ExperimentResults
+from train.experiments.report.runs import ExperimentResults, Run
 from train.experiments.report.stats import CI_LEVEL, bootstrap_ci
 from train.fileio import atomic_file
 
@@ -59,29 +59,10 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     for ax, task in zip(axes.flat, tasks):
         runs = [r for r in exp.runs if r.task == task]
         for run in runs:
-            color = color_of[run.condition]
-            mean, low, high = bootstrap_ci(run.values)
-            ax.plot(run.steps, run.values, color=color, lw=0.5, alpha=0.35)  # each seed: the bimodality
-            (line,) = ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
-            ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
+            line, quoted = _draw_run(ax, run, color_of[run.condition], paper, reference)
             handles.setdefault(run.label, line)
-            for old in (reference.runs if reference else []):
-                if old.task == task and old.condition == run.condition:
-                    ax.plot(old.steps, bootstrap_ci(old.values)[0], color=color, lw=1.2, ls="--")
-            ref = paper_value(paper, task, run.condition)
-            if ref is not None:
-                ax.axhline(ref["value"], color=color, ls=":", lw=1.3)
-                has_paper = True
-        metric = runs[0].metric
-        ax.set_title(task)
-        ax.set_xlabel("environment steps")
-        ax.set_ylabel("fraction of validation tasks solved" if metric == "success" else "mean validation return")
-        if metric == "success":
-            ax.set_ylim(-0.03, 1.03)
-        ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 3))
-        ax.grid(alpha=0.3)
-        if not shared_legend:
-            ax.legend(fontsize=7, frameon=False, loc="upper left")
+            has_paper = has_paper or quoted
+        _style_panel(ax, task, runs[0].metric, own_legend=not shared_legend)
     for ax in list(axes.flat)[len(tasks):]:
         ax.set_visible(False)
     if not shared_legend:
@@ -104,6 +85,35 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     fig.suptitle(textwrap.fill(title, int(width * 11)), fontsize=11)
     _save_figure(fig, out, dpi=110)
     return out
+
+
+def _draw_run(ax, run: Run, color: str, paper: dict, reference: ExperimentResults | None) -> tuple[Any, bool]:
+    """One condition in a panel: each seed thin, the mean and its CI, the reference's mean dashed, the paper's
+    value dotted; returns the mean's line and whether the paper's value was drawn."""
+    mean, low, high = bootstrap_ci(run.values)
+    ax.plot(run.steps, run.values, color=color, lw=0.5, alpha=0.35)  # each seed: the bimodality
+    (line,) = ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
+    ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
+    for old in (reference.runs if reference else []):
+        if old.task == run.task and old.condition == run.condition:
+            ax.plot(old.steps, bootstrap_ci(old.values)[0], color=color, lw=1.2, ls="--")
+    ref = paper_value(paper, run.task, run.condition)
+    if ref is not None:
+        ax.axhline(ref["value"], color=color, ls=":", lw=1.3)
+    return line, ref is not None
+
+
+def _style_panel(ax, task: str, metric: str, own_legend: bool) -> None:
+    """Title, axis labels and limits, grid and (when conditions are labelled per task) a legend of one panel."""
+    ax.set_title(task)
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("fraction of validation tasks solved" if metric == "success" else "mean validation return")
+    if metric == "success":
+        ax.set_ylim(-0.03, 1.03)
+    ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 3))
+    ax.grid(alpha=0.3)
+    if own_legend:
+        ax.legend(fontsize=7, frameon=False, loc="upper left")
 
 
 def _save_figure(fig, out: Path, dpi: int) -> None:

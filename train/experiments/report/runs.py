@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 
 from train.experiments.catalog import BUDGETS, EXPERIMENTS
-from train.experiments.sweep import DONE_FILE, EXPERIMENT_FILE
+from train.experiments.jobs import DONE_FILE
+from train.experiments.sweep import EXPERIMENT_FILE
 
 REFERENCE_DIR = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
 """Shipped paper-budget runs (metrics only): a report draws an experiment's quick curves over them."""
