@@ -131,21 +131,21 @@ def make_vector_env(env_id: str, num_envs: int, kwargs: dict[str, Any]) -> gym.v
 
 
 def env_state(env: gym.vector.VectorEnv) -> dict[str, Any]:
-    """The state of a training vector env as plain data: grid worlds by record field, or each food
-    collector's `get_state` and the vector env's autoreset flags."""
-    if hasattr(env, "worlds"):  # the grid tasks' batched engine: one structured record per world
+    """The state of a training vector env as plain data: the grid tasks' batched worlds by record field, or
+    each world's `get_state` (the food collector's) and the vector env's autoreset flags."""
+    if isinstance(env, gridtasks.GridTaskVectorEnv):  # one structured record per world
         worlds = env.worlds
         return {"kind": "grid", "worlds": {name: worlds[name].copy() for name in worlds.dtype.names}}
-    if isinstance(env, gym.vector.SyncVectorEnv) and all(hasattr(e.unwrapped, "get_state") for e in env.envs):
+    if isinstance(env, gym.vector.SyncVectorEnv):
         return {"kind": "sync", "autoreset": np.asarray(env._autoreset_envs, dtype=bool).copy(),
                 "envs": [e.unwrapped.get_state() for e in env.envs]}
-    raise TypeError(f"{type(env).__name__} has no saveable state (grid worlds or get_state)")
+    raise TypeError(f"{type(env).__name__} has no saveable state (batched grid worlds or get_state)")
 
 
 def restore_env_state(env: gym.vector.VectorEnv, state: dict[str, Any]) -> None:
     """Put `env_state` output back into ``env`` (same task and number of worlds, already reset once)."""
     kind = state.get("kind")
-    if kind == "grid" and hasattr(env, "worlds"):
+    if kind == "grid" and isinstance(env, gridtasks.GridTaskVectorEnv):
         worlds = env.worlds
         saved = state["worlds"]
         if set(saved) != set(worlds.dtype.names):
