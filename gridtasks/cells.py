@@ -163,7 +163,8 @@ def directed_step(w, n: int, x: int, y: int, direction: int):
 @nb.njit(cache=True)
 def random_step(w, n: int, x: int, y: int, moves: int):
     """The original's random step: one of the first ``moves`` of N, W, S, E, stay, uniformly, taken only if
-    the target is free (a blocked creature stays where it is)."""
+    the target is free (a blocked creature stays where it is).
+    """
     k = randint(w, moves)
     nx, ny = x + STEP_DX[k], y + STEP_DY[k]
     if free_cell(w, n, nx, ny):

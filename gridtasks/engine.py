@@ -167,7 +167,8 @@ the phases and world lifecycle defined here."""
 @nb.njit(cache=True)
 def reset_world(w, r, obs) -> None:
     """Start a new episode: the fixed layout, the initial objects anywhere, then the agent on a random
-    empty cell, then the predators. The RNG stream and the lifetime clock carry on."""
+    empty cell, then the predators. The RNG stream and the lifetime clock carry on.
+    """
     n = r.n
     w.grid[:, :] = r.layout
     w.age[:, :] = 0
@@ -238,7 +239,8 @@ def step_world(w, r, action: int, obs):
 @nb.njit(cache=True)
 def begin_episode(w, r, obs) -> None:
     """Reset a world: a fresh layout, or (the original's episodic rule, ``replay_unsolved``) the layout
-    of the episode that just ended unsolved, redrawn from the same point of the world's stream."""
+    of the episode that just ended unsolved, redrawn from the same point of the world's stream.
+    """
     if r.replay_unsolved > 0 and w.replay_layout:
         w.rng = w.layout_rng
     else:

@@ -157,7 +157,8 @@ class GridTaskEnv(gym.Env):
     def test_mdp_kwargs(self) -> dict:
         """Keyword arguments that make this environment's evaluation MDP with ``gymnasium.make``: the same
         task parameters, the test MDP's knobs, the task's test overrides and its test horizon (the
-        ``horizon`` default of its ``Config``, whatever episode length this env trains with)."""
+        ``horizon`` default of its ``Config``, whatever episode length this env trains with).
+        """
         test_horizon = {f.name: f.default for f in dataclasses.fields(self.Config)}["horizon"]
         replay = {"replay_unsolved": 0} if isinstance(self.config, EpisodeRules) else {}
         return test_mdp_kwargs(dataclasses.asdict(self.config), test_horizon, **{**replay, **self.test_overrides()})

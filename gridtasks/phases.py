@@ -1,5 +1,6 @@
 """The phases of a grid step, each a compiled function of (world, rules): act, move creatures and predators,
-grow and wither resources, reward, observe (their order is `gridtasks.engine.step_world`)."""
+grow and wither resources, reward, observe (their order is `gridtasks.engine.step_world`).
+"""
 
 from __future__ import annotations
 
@@ -134,7 +135,8 @@ def respawn_predator(w, r, i: int) -> None:
 def move_predators(w, r, tx: int, ty: int) -> bool:
     """Predators chase the cell (tx, ty) the agent stood on before its move (greedy L1 step) or, with
     probability p, take a random one of N, W, S, E, stay; they live ``predator_lifespan`` steps and then
-    reappear at random. Returns True if one ends the step on the agent's cell."""
+    reappear at random. Returns True if one ends the step on the agent's cell.
+    """
     for i in range(r.num_predators):
         x, y = w.pred[i, 0], w.pred[i, 1]
         if uniform(w) < r.predator_wander_prob:
@@ -166,7 +168,8 @@ def grow_resources(w, r, s: float) -> None:
     """Replenish depleted populations (one object per group per step) and grow new ones with their
     per-step probability, inside the shaping window for groups that spawn near the agent. Populations
     are counted on the grid, as in the original (a carried object is not counted unless
-    ``count_carried``), so picking up the last lettuce grows a new one at once."""
+    ``count_carried``), so picking up the last lettuce grows a new one at once.
+    """
     counts = np.empty(NC, dtype=np.int64)
     count_codes(w, r.n, counts)
     if r.count_carried and w.inventory != 0:
@@ -228,7 +231,8 @@ def task_reward(w, r, picked: int, made: int, dropped: int, solved: bool) -> flo
 @nb.njit(cache=True)
 def observe(w, r, obs) -> None:
     """Write the observation: the 5×5 north-up view one-hot per channel (index c·25 + row·5 + col),
-    predators overlaid on their channel, then the one-hot inventory (all zeros when empty-handed)."""
+    predators overlaid on their channel, then the one-hot inventory (all zeros when empty-handed).
+    """
     n = r.n
     obs[:] = 0.0
     ax, ay = w.agent[0], w.agent[1]

@@ -22,7 +22,8 @@ def _stable_record_mangling(self) -> tuple:
     each process starts afresh. Kernels cached by two processes for two grid sizes (two record types) can
     then carry the same symbol name, and a third process that loads both crashes inside LLVM
     ("Didn't find key?", "free(): invalid pointer"). A digest of the record's layout is the same in every
-    process and differs between layouts."""
+    process and differs between layouts.
+    """
     return type(self).__name__, (hashlib.blake2b(self.name.encode(), digest_size=8).hexdigest(),)
 
 

@@ -1,5 +1,6 @@
 """What a training run reports while it runs: the progress bar, and at each evaluation metrics.csv, the
-visitation counts and (optionally) TensorBoard scalars; and the stop signal that ends it cleanly."""
+visitation counts and (optionally) TensorBoard scalars; and the stop signal that ends it cleanly.
+"""
 
 from __future__ import annotations
 
@@ -63,7 +64,8 @@ class RunLogger:
 
     def __init__(self, run_dir: RunDir, cfg: TrainConfig, resumed_at: int | None = None) -> None:
         """``resumed_at``: the step a resumed run continues from; TensorBoard drops what a killed process
-        logged after it, so no step appears twice."""
+        logged after it, so no step appears twice.
+        """
         self.run_dir = run_dir
         self.writer = None
         if cfg.run.tensorboard:

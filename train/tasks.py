@@ -132,7 +132,8 @@ def make_vector_env(env_id: str, num_envs: int, kwargs: dict[str, Any]) -> gym.v
 
 def env_state(env: gym.vector.VectorEnv) -> dict[str, Any]:
     """The state of a training vector env as plain data: the grid tasks' batched worlds by record field, or
-    each world's `get_state` (the food collector's) and the vector env's autoreset flags."""
+    each world's `get_state` (the food collector's) and the vector env's autoreset flags.
+    """
     if isinstance(env, gridtasks.GridTaskVectorEnv):  # one structured record per world
         worlds = env.worlds
         return {"kind": "grid", "worlds": {name: worlds[name].copy() for name in worlds.dtype.names}}

@@ -81,7 +81,8 @@ class Trainer:
 
     def _open_run_dir(self, resume: bool) -> None:
         """Lock the run directory; on resume restore the checkpoint and rewrite config.json (and a deleted
-        metrics.csv)."""
+        metrics.csv).
+        """
         try:
             self.run_dir.prepare(self.cfg, resume)
             if resume:

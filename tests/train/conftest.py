@@ -1,6 +1,7 @@
 """Shared fixtures of the trainer, experiment and command-line tests: one torch thread, the ``ecorl`` command
 in a fresh interpreter, and every experiment run once at the smoke budget (a task subset where it has many
-tasks)."""
+tasks).
+"""
 
 from __future__ import annotations
 

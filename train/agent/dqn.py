@@ -20,7 +20,7 @@ Tensor = torch.Tensor
 
 def double_dqn_target(q_next_online: Tensor, q_next_target: Tensor, reward: Tensor, terminated: Tensor,
                       gamma: float) -> Tensor:
-    """r + gamma * (1 - terminated) * Q_target(s', argmax_a Q_online(s', a)), elementwise over leading axes.
+    """The target r + gamma * (1 - terminated) * Q_target(s', argmax_a Q_online(s', a)), elementwise.
 
     ``terminated`` marks true terminal states only: a time-limit truncation is not one, so its transition
     bootstraps from the next observation like any other.

@@ -76,7 +76,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
     """The configuration and run directory ``ecorl train`` asks for (on --resume: the checkpoint's settings
-    with the given ones); raises ValueError or `RunDirError` with a one-line reason."""
+    with the given ones); raises ValueError or `RunDirError` with a one-line reason.
+    """
     cfg = config_from_args(args).replace(task=args.task)
     out = args.out or default_run_dir(cfg)
     if out.exists() and not out.is_dir():

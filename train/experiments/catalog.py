@@ -260,7 +260,8 @@ def _settings_conditions() -> tuple[Condition, ...]:
 
     Listed in the order they run: the learning-rate sweep first (the paper tuned it), then the reward of
     the released scripts, the episodic horizons of the text (200) and of the released script (100), the
-    released training loop's replay of unsolved layouts, and the text's batch size."""
+    released training loop's replay of unsolved layouts, and the text's batch size.
+    """
     p = DYNAMIC_P["salad"]
     rf = {"dynamism": p, "reset_free": True, "lr": SETTINGS_LR}
     ep = {"dynamism": p, "reset_free": False, "lr": SETTINGS_LR}

@@ -25,7 +25,8 @@ _PARENT: int | None = None
 
 def _init_worker(stop, parent: int) -> None:
     """Worker initializer: Ctrl-C reaches the trainer's own handler (a clean stop), not the pool loop; the
-    worker gets SIGTERM (a clean stop too) when the sweep's process dies, and then takes no further job."""
+    worker gets SIGTERM (a clean stop too) when the sweep's process dies, and then takes no further job.
+    """
     global _STOP, _PARENT
     _STOP, _PARENT = stop, parent
     signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -65,7 +65,8 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
 
 def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequence[Job], out: str | Path) -> Path:
     """Record what this experiment directory holds, merged (under a lock) with earlier or concurrent runs of
-    other task subsets."""
+    other task subsets.
+    """
     from train.fileio import FileLock, LockedError
 
     path = Path(out).resolve() / experiment.name / EXPERIMENT_FILE

@@ -51,7 +51,8 @@ class Film:
 def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | None = None,
                  episodes: int = 1) -> Film:
     """Film ``act`` in ``env`` from a reset with ``seed``: exactly ``steps`` steps (a new episode after each
-    end) or, without ``steps``, ``episodes`` whole episodes. The first frame is included."""
+    end) or, without ``steps``, ``episodes`` whole episodes. The first frame is included.
+    """
     obs, _ = env.reset(seed=seed)
     frames, started, solved, solved_now, taken, total = [env.render()], 1, 0, False, 0, 0.0
     while steps is None or taken < steps:

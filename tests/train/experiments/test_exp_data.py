@@ -163,7 +163,8 @@ def test_every_condition_is_evaluated_at_the_test_horizon(tmp_path):
 
 def test_tuned_settings_apply_per_task_and_conditions_still_win():
     """Salad trains at the settings study's learning rate; other tasks keep the original default;
-    a condition that names its own rate (the study's arms) keeps it."""
+    a condition that names its own rate (the study's arms) keeps it.
+    """
     assert TrainConfig().dqn.lr == 1e-4  # the original code's default, unchanged for `ecorl train`
     dyn = get_experiment("dynamism")
     lrs = {task: job_config(dyn, task, conds[0], dyn.budget("smoke")).dqn.lr for task, conds in dyn.conditions.items()}

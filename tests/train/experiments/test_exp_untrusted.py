@@ -1,5 +1,6 @@
 """Run and results directories from someone else: opening them never runs their code or writes outside them;
-sweeps keep one writer per run and stop with their parent."""
+sweeps keep one writer per run and stop with their parent.
+"""
 
 from __future__ import annotations
 
@@ -51,7 +52,8 @@ def _evil_npz(path: Path, marker: Path, manifest: bool) -> None:
 @pytest.fixture
 def planted(tmp_path) -> tuple[Path, Path]:
     """A results directory of the headline experiment whose four runs each carry a booby-trapped checkpoint
-    (pickles, object arrays), plus a booby-trapped policy file; returns (results dir, marker path)."""
+    (pickles, object arrays), plus a booby-trapped policy file; returns (results dir, marker path).
+    """
     marker = tmp_path / "PWNED"
     out = tmp_path / "results"
     exp = get_experiment("headline")

@@ -28,6 +28,7 @@ def _pyplot():
 
 
 def reference_label(reference: ExperimentResults) -> str:
+    """The legend entry of a reference experiment's dashed curves: its seeds and steps."""
     seeds = sorted({r.seeds for r in reference.runs})
     steps = max(int(r.steps[-1]) for r in reference.runs)
     return f"shipped run, {'/'.join(map(str, seeds))} seeds × {steps / 1e6:.2g} M steps (dashed)"
@@ -37,7 +38,8 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
                 reference: ExperimentResults | None = None) -> Path | None:
     """One panel per task: mean and 95% CI over seeds of every condition, each seed as a thin line; the
     paper's values dotted; the same conditions of a ``reference`` experiment (shipped paper-budget runs)
-    dashed, so a short run shows where its curves are heading."""
+    dashed, so a short run shows where its curves are heading.
+    """
     tasks = [t for t in exp.tasks if any(r.task == t for r in exp.runs)]
     if not tasks:
         return None
@@ -89,7 +91,8 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
 
 def _draw_run(ax, run: Run, color: str, paper: dict, reference: ExperimentResults | None) -> tuple[Any, bool]:
     """One condition in a panel: each seed thin, the mean and its CI, the reference's mean dashed, the paper's
-    value dotted; returns the mean's line and whether the paper's value was drawn."""
+    value dotted; returns the mean's line and whether the paper's value was drawn.
+    """
     mean, low, high = bootstrap_ci(run.values)
     ax.plot(run.steps, run.values, color=color, lw=0.5, alpha=0.35)  # each seed: the bimodality
     (line,) = ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)

@@ -11,7 +11,7 @@ PAPER_DIR = Path(__file__).resolve().parents[3] / "assets" / "paper"
 
 
 def load_paper(paper_dir: Path = PAPER_DIR) -> dict[str, dict[str, list[dict[str, Any]]]]:
-    """experiment -> {'values': [...], 'claims': [...], 'sources': [...]} from ``assets/paper/*.json``."""
+    """The paper's numbers by experiment, {'values', 'claims', 'sources'}, from ``assets/paper/*.json``."""
     out: dict[str, dict[str, list[dict[str, Any]]]] = {}
     if not paper_dir.is_dir():
         return out

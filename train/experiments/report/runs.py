@@ -95,7 +95,8 @@ class ReportError(ValueError):
 def trusted_info(path: Path) -> dict[str, Any]:
     """experiment.json of ``path``, checked against the known experiments: its name, tasks and conditions
     must be ones `train.experiments.catalog` defines (so no name can lead outside the results folder), and every
-    text shown comes from the known experiment, not from the file."""
+    text shown comes from the known experiment, not from the file.
+    """
     try:
         saved = json.loads((path / EXPERIMENT_FILE).read_text())
     except ValueError as err:
@@ -152,7 +153,8 @@ def load_experiment(path: Path) -> ExperimentResults:
 
 def load_reference(exp: ExperimentResults, reference_dir: Path | None = None) -> ExperimentResults | None:
     """The shipped paper-budget runs of ``exp``'s experiment (under `REFERENCE_DIR` unless given), or None
-    (none shipped, or ``exp`` is them)."""
+    (none shipped, or ``exp`` is them).
+    """
     path = (reference_dir or REFERENCE_DIR) / exp.name
     if not (path / EXPERIMENT_FILE).exists() or path.resolve() == exp.path.resolve():
         return None

@@ -26,7 +26,8 @@ MEASUREMENT_COLUMNS = (("task", "task"), ("measure", "measurement"), ("condition
 
 def final_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
     """Per condition: last evaluation's mean and 95% CI over seeds and the seeds that learned, beside the
-    paper's value."""
+    paper's value.
+    """
     rows = []
     for run in exp.runs:
         ours, learned = summarize(run.values[-1], run.metric)
@@ -45,7 +46,8 @@ def _milestones(exp: ExperimentResults) -> list[int]:
 def milestone_rows(exp: ExperimentResults) -> list[dict[str, Any]]:
     """Per condition and milestone step of the experiment (``info['milestones']``): the evaluation closest
     to it (within `MILESTONE_TOLERANCE`), mean [95% CI] and seeds learned; '—' where the run has not reached
-    it."""
+    it.
+    """
     milestones = _milestones(exp)
     rows = []
     for run in exp.runs:
