@@ -6,7 +6,7 @@ from ecology.contract import (
     VisitGrid,
     check_action,
     check_render_mode,
-    test_mdp_kwargs,
+    make_test_mdp_kwargs,
 )
 from ecology.knobs import (
     NUM_VALIDATION_LAYOUTS,
@@ -40,7 +40,7 @@ __all__ = [
     "marginal_entropy",
     "parse_schedule",
     "schedule_value",
-    "test_mdp_kwargs",
+    "make_test_mdp_kwargs",
     "validation_seeds",
     "visitation_counts",
     "write_video",

@@ -70,7 +70,7 @@ class EcologicalEnv(Protocol):
         """The task parameters the environment takes as keyword arguments (besides the knobs)."""
 
 
-def test_mdp_kwargs(params: Mapping[str, Any], horizon: int, **overrides: Any) -> dict[str, Any]:
+def make_test_mdp_kwargs(params: Mapping[str, Any], horizon: int, **overrides: Any) -> dict[str, Any]:
     """A task's test-MDP arguments: its parameters, the `TEST_MDP` knobs, its test horizon and overrides."""
     return {**params, **TEST_MDP, "horizon": horizon, **overrides}
 

@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ecology import Ecology, VisitGrid, check_action, check_render_mode, schedule_value, test_mdp_kwargs
+from ecology import Ecology, VisitGrid, check_action, check_render_mode, make_test_mdp_kwargs, schedule_value
 from foodcollector.arena import RAY_VALUES, Arena
 from foodcollector.params import NUM_RAYS, PARAM_NAMES, UNITY_EPISODE_DECISIONS, FoodCollectorParams
 from foodcollector.render import FRAME_SIZE, draw_frame
@@ -285,7 +285,7 @@ class FoodCollectorEnv(gym.Env):
         The same task parameters with `ecology.TEST_MDP` knobs: static spheres, uniform spawns,
         episodic, truncated at Unity's 1000 decisions.
         """
-        return test_mdp_kwargs(self.params.as_kwargs(), UNITY_EPISODE_DECISIONS)
+        return make_test_mdp_kwargs(self.params.as_kwargs(), UNITY_EPISODE_DECISIONS)
 
     @classmethod
     def parameter_names(cls) -> tuple[str, ...]:

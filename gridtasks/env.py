@@ -18,7 +18,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ecology import Ecology, VisitGrid, check_action, check_render_mode, test_mdp_kwargs
+from ecology import Ecology, VisitGrid, check_action, check_render_mode, make_test_mdp_kwargs
 from gridtasks import engine
 from gridtasks.codes import NAMES, Code
 
@@ -161,7 +161,8 @@ class GridTaskEnv(gym.Env):
         """
         test_horizon = {f.name: f.default for f in dataclasses.fields(self.Config)}["horizon"]
         replay = {"replay_unsolved": 0} if isinstance(self.config, EpisodeRules) else {}
-        return test_mdp_kwargs(dataclasses.asdict(self.config), test_horizon, **{**replay, **self.test_overrides()})
+        overrides = {**replay, **self.test_overrides()}
+        return make_test_mdp_kwargs(dataclasses.asdict(self.config), test_horizon, **overrides)
 
     @property
     def observation_split(self) -> tuple[int, int]:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -12,19 +11,12 @@ DEMO_KNOBS = {"dynamism": 0.1, "reset_free": True}
 
 
 def demo_envs() -> dict:
-    """Task name -> a render-ready environment (grid tasks, plus the food collector when installed)."""
+    """Task name -> a render-ready environment, for every task (`train.tasks.TASKS`)."""
     import gymnasium as gym
 
-    import gridtasks
+    from train.tasks import TASKS
 
-    envs = {name: gym.make(env_id, render_mode="rgb_array", **DEMO_KNOBS)
-            for name, env_id in gridtasks.ENV_IDS.items()}
-    if importlib.util.find_spec("foodcollector") is not None:
-        import foodcollector  # noqa: F401  (registers the env)
-
-        envs["foodcollector"] = gym.make("foodcollector/FoodCollector-v0", render_mode="rgb_array",
-                                         **DEMO_KNOBS)
-    return envs
+    return {name: gym.make(task.env_id, render_mode="rgb_array", **DEMO_KNOBS) for name, task in TASKS.items()}
 
 
 def record_random_rollout(env, steps: int, seed: int) -> list[np.ndarray]:
