@@ -2,7 +2,8 @@
 
 A subcommand reports a user's mistake (bad input, a run directory that does not fit) by raising `UserError`,
 or by running the code that may fail inside ``with user_errors(...)``; `train.cli.main` prints it as one line
-``ecorl COMMAND: error: MESSAGE`` and exits with status 2, argparse's status for bad input.
+``ecorl COMMAND: error: MESSAGE`` and exits with status 2. Mistakes argparse finds itself (and a handler's
+``parser.error``) print the same line through `OneLineParser` and raise SystemExit(2).
 """
 
 from __future__ import annotations
