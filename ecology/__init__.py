@@ -1,5 +1,13 @@
-"""The shared ecology interface: knobs, measurements and video, independent of any task."""
+"""The shared ecology interface: knobs, the environment contract, measurements and video, independent of any task."""
 
+from ecology.contract import (
+    EcologicalEnv,
+    InvalidAction,
+    VisitGrid,
+    check_action,
+    check_render_mode,
+    make_test_mdp_kwargs,
+)
 from ecology.knobs import (
     NUM_VALIDATION_LAYOUTS,
     REWARD_MODES,
@@ -21,12 +29,18 @@ __all__ = [
     "SCHEDULE_HELP",
     "TEST_MDP",
     "VALIDATION_SEED_BASE",
+    "EcologicalEnv",
     "Ecology",
+    "InvalidAction",
     "Schedule",
+    "VisitGrid",
+    "check_action",
+    "check_render_mode",
     "hitting_time",
     "marginal_entropy",
     "parse_schedule",
     "schedule_value",
+    "make_test_mdp_kwargs",
     "validation_seeds",
     "visitation_counts",
     "write_video",

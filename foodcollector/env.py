@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ecology import TEST_MDP, Ecology, schedule_value
+from ecology import Ecology, VisitGrid, check_action, check_render_mode, make_test_mdp_kwargs, schedule_value
 from foodcollector.arena import RAY_VALUES, Arena
 from foodcollector.params import NUM_RAYS, PARAM_NAMES, UNITY_EPISODE_DECISIONS, FoodCollectorParams
 from foodcollector.render import FRAME_SIZE, draw_frame
@@ -27,17 +27,13 @@ VELOCITY_BOUND_MARGIN = 1.05  # the terminal speed is a strict bound; 5% headroo
 REWARD_GREEN = 1.0
 REWARD_RED = -1.0
 
+VISIT_BINS = 20
+"""Visitation maps bin the arena into this many cells per side."""
+
 
 def decode_action(action: Any) -> tuple[int, int, int]:
     """Validate an action and split it into (forward, strafe, turn) branch values."""
-    if isinstance(action, np.ndarray) and action.ndim == 0:
-        action = action[()]
-    if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)):
-        raise TypeError(f"the food collector's action must be an integer in [0, {NUM_ACTIONS}), "
-                        f"got {action!r} of type {type(action).__name__}")
-    if not 0 <= action < NUM_ACTIONS:
-        raise ValueError(f"the food collector's action must lie in [0, {NUM_ACTIONS}), got {int(action)}")
-    return ACTION_TABLE[int(action)]
+    return ACTION_TABLE[check_action(action, NUM_ACTIONS)]
 
 
 def encode_action(forward: int = 0, strafe: int = 0, turn: int = 0) -> int:
@@ -88,7 +84,7 @@ class FoodCollectorEnv(gym.Env):
     | strafe  | none | right (overrides forward)  | left (overrides forward)    |
     | turn    | none | left, counter-clockwise 6° | right, clockwise 6°         |
     E.g. 9 = forward, 10 = forward + turn left, 3 = strafe right. Anything but an integer in [0, 27)
-    raises (TypeError / ValueError). Unity's laser branch is dropped (single agent).
+    raises `ecology.InvalidAction` (both a TypeError and a ValueError). Unity's laser branch is dropped (single agent).
 
     ## Observation space: ``Box(53,)`` float32 (Unity's layout)
     | index       | meaning                                                                           |
@@ -153,10 +149,7 @@ class FoodCollectorEnv(gym.Env):
         self.params = _resolve_params(params, task_params)
         self.ecology = Ecology(dynamism=dynamism, shaping=shaping, reset_free=reset_free,
                                reward=_check_reward(reward))
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, "
-                             f"got {render_mode!r}")
-        self.render_mode = render_mode
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         self.action_space = spaces.Discrete(NUM_ACTIONS)
         self.observation_space = self._make_observation_space()
         self.observation_split = (RAY_OBS, VECTOR_OBS)
@@ -292,10 +285,18 @@ class FoodCollectorEnv(gym.Env):
         The same task parameters with `ecology.TEST_MDP` knobs: static spheres, uniform spawns,
         episodic, truncated at Unity's 1000 decisions.
         """
-        kwargs = self.params.as_kwargs()
-        kwargs["horizon"] = UNITY_EPISODE_DECISIONS
-        kwargs.update(TEST_MDP)
-        return kwargs
+        return make_test_mdp_kwargs(self.params.as_kwargs(), UNITY_EPISODE_DECISIONS)
+
+    @classmethod
+    def parameter_names(cls) -> tuple[str, ...]:
+        """The task parameters this environment takes as keyword arguments: the fields of `FoodCollectorParams`."""
+        return tuple(PARAM_NAMES)
+
+    @property
+    def visit_grid(self) -> VisitGrid:
+        """Visitation maps bin the arena into `VISIT_BINS` x `VISIT_BINS` cells (row from y, column from x)."""
+        half = self.params.arena_half_size
+        return VisitGrid((VISIT_BINS, VISIT_BINS), (-half, -half), VISIT_BINS / (2 * half))
 
     # ---- saving and restoring ---------------------------------------------------------------------
 

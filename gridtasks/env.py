@@ -18,7 +18,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ecology import TEST_MDP, Ecology
+from ecology import Ecology, VisitGrid, check_action, check_render_mode, make_test_mdp_kwargs
 from gridtasks import engine
 from gridtasks.codes import NAMES, Code
 
@@ -97,9 +97,7 @@ class GridTaskEnv(gym.Env):
                  **params):
         self.ecology = Ecology(dynamism=dynamism, shaping=shaping, reset_free=reset_free, reward=reward)
         self.config = self._make_config(params)
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(f"unknown render_mode {render_mode!r}; choose None or 'rgb_array'")
-        self.render_mode = render_mode
+        self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         self.rules = self._build_rules()
         c = len(self.channels)
         self.observation_space = spaces.Box(0.0, 1.0, (c * engine.VIEW_CELLS + c,), np.float32)
@@ -112,8 +110,13 @@ class GridTaskEnv(gym.Env):
     # ---------------------------------------------------------------- construction
 
     @classmethod
+    def parameter_names(cls) -> tuple[str, ...]:
+        """The task parameters this task takes as keyword arguments: the fields of its ``Config``."""
+        return tuple(f.name for f in dataclasses.fields(cls.Config))
+
+    @classmethod
     def _make_config(cls, params: dict):
-        names = [f.name for f in dataclasses.fields(cls.Config)]
+        names = cls.parameter_names()
         unknown = sorted(set(params) - set(names))
         if unknown:
             raise TypeError(f"{cls.__name__} got unknown parameter(s) {unknown}; valid task parameters: "
@@ -154,11 +157,12 @@ class GridTaskEnv(gym.Env):
     def test_mdp_kwargs(self) -> dict:
         """Keyword arguments that make this environment's evaluation MDP with ``gymnasium.make``: the same
         task parameters, the test MDP's knobs, the task's test overrides and its test horizon (the
-        ``horizon`` default of its ``Config``, whatever episode length this env trains with)."""
+        ``horizon`` default of its ``Config``, whatever episode length this env trains with).
+        """
         test_horizon = {f.name: f.default for f in dataclasses.fields(self.Config)}["horizon"]
         replay = {"replay_unsolved": 0} if isinstance(self.config, EpisodeRules) else {}
-        return {**dataclasses.asdict(self.config), **TEST_MDP, "horizon": test_horizon, **replay,
-                **self.test_overrides()}
+        overrides = {**replay, **self.test_overrides()}
+        return make_test_mdp_kwargs(dataclasses.asdict(self.config), test_horizon, **overrides)
 
     @property
     def observation_split(self) -> tuple[int, int]:
@@ -170,6 +174,11 @@ class GridTaskEnv(gym.Env):
     def grid_shape(self) -> tuple[int, int]:
         """(rows, columns) of the grid, the shape of visitation maps indexed [y, x]."""
         return self.config.grid_size, self.config.grid_size
+
+    @property
+    def visit_grid(self) -> VisitGrid:
+        """Visitation maps of the grid tasks count whole cells: the agent's (x, y) is cell [y, x]."""
+        return VisitGrid(self.grid_shape)
 
     @property
     def world(self) -> np.void:
@@ -194,7 +203,7 @@ class GridTaskEnv(gym.Env):
         if not self._seeded:
             raise RuntimeError("call reset() before step()")
         b = self._buffers
-        b.actions[0] = check_action(action)
+        b.actions[0] = check_action(action, engine.NUM_ACTIONS, engine.ACTION_NAMES)
         engine.step_worlds(self._state, self.rules, b.actions, b.obs, b.rewards, b.terminated, b.truncated,
                            b.solved, b.caught, False)
         info = self._info(bool(b.solved[0]), bool(b.caught[0]))
@@ -238,18 +247,6 @@ class StepBuffers:
         self.truncated = np.zeros(b, dtype=np.bool_)
         self.solved = np.zeros(b, dtype=np.bool_)
         self.caught = np.zeros(b, dtype=np.bool_)
-
-
-def check_action(action) -> int:
-    """Return ``action`` as an int, or raise if it is not one of the 7 actions."""
-    if isinstance(action, np.ndarray) and action.shape == ():
-        action = action.item()
-    if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)) or not (
-        0 <= action < engine.NUM_ACTIONS
-    ):
-        raise ValueError(f"invalid action {action!r}: expected an integer in [0, {engine.NUM_ACTIONS - 1}] "
-                         f"({', '.join(engine.ACTION_NAMES)})")
-    return int(action)
 
 
 class GridTaskVectorEnv(VectorEnv):

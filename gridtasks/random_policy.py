@@ -88,7 +88,8 @@ HEADER = ("| setting | solves per seed (± 95 % CI) | first solve, mean / median
 def measure(task: str, knobs: dict, seeds: int = 32, steps: int = 20_000, seed: int = 0, name: str = "",
             progress: bool = False) -> RandomPolicyStats:
     """Run ``seeds`` reset-free worlds of ``task`` (knobs and task parameters in ``knobs``) under a uniform
-    random policy for ``steps`` steps; world i is seeded ``seed + i``, the actions by ``seed``."""
+    random policy for ``steps`` steps; world i is seeded ``seed + i``, the actions by ``seed``.
+    """
     if task not in TASKS:
         raise ValueError(f"unknown grid task {task!r}; choose one of {', '.join(TASKS)}")
     env = GridTaskVectorEnv(TASKS[task], seeds, copy=False, reset_free=True, reward="sparse", **knobs)

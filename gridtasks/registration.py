@@ -13,21 +13,17 @@ from gridtasks.salad import SaladEnv, WalledSaladEnv
 from gridtasks.scavenging import ScavengingEnv
 
 NAMESPACE = "gridtasks"
-TASKS: dict[str, type[GridTaskEnv]] = {
-    "salad": SaladEnv,
-    "hunting": HuntingEnv,
-    "scavenging": ScavengingEnv,
-    "factory": FactoryEnv,
-    "walled-salad": WalledSaladEnv,
-}
-"""Task name (as the CLI spells it) -> environment class."""
-ENV_IDS = {
-    "salad": "gridtasks/Salad-v0",
-    "hunting": "gridtasks/Hunting-v0",
-    "scavenging": "gridtasks/Scavenging-v0",
-    "factory": "gridtasks/Factory-v0",
-    "walled-salad": "gridtasks/WalledSalad-v0",
-}
+TABLE: tuple[tuple[str, str, type[GridTaskEnv]], ...] = (
+    ("salad", "Salad-v0", SaladEnv),
+    ("hunting", "Hunting-v0", HuntingEnv),
+    ("scavenging", "Scavenging-v0", ScavengingEnv),
+    ("factory", "Factory-v0", FactoryEnv),
+    ("walled-salad", "WalledSalad-v0", WalledSaladEnv),
+)
+"""The grid tasks, one row each: name (as the CLI spells it), Gymnasium id (in `NAMESPACE`), class."""
+TASKS: dict[str, type[GridTaskEnv]] = {name: env_class for name, _, env_class in TABLE}
+"""Task name -> environment class."""
+ENV_IDS: dict[str, str] = {name: f"{NAMESPACE}/{env_id}" for name, env_id, _ in TABLE}
 """Task name -> Gymnasium id."""
 
 

@@ -18,7 +18,8 @@ VIEW_SHADE = 0.18
 
 def render_world(world: np.void, rules: np.void, channels=(), tile: int = TILE) -> np.ndarray:
     """An RGB uint8 frame of one world: the grid, the agent's 5×5 view brightened, predators, and a strip
-    showing the carried object, the lifetime step and the completions."""
+    showing the carried object, the lifetime step and the completions.
+    """
     grid = world["grid"]
     n = grid.shape[0]
     frame = np.repeat(np.repeat(COLORS[grid], tile, axis=0), tile, axis=1)

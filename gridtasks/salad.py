@@ -49,7 +49,8 @@ class WalledSaladConfig(SaladConfig):
 
 def inner_wall_cells(n: int) -> list[tuple[int, int]]:
     """(x, y) cells of the appendix's three vertical walls at x = (i+1)·n//4, alternately hanging from the
-    top and standing on the bottom, each n//2 - 1 long (on 10×10: x=2 y=1..4, x=5 y=5..8, x=7 y=1..4)."""
+    top and standing on the bottom, each n//2 - 1 long (on 10×10: x=2 y=1..4, x=5 y=5..8, x=7 y=1..4).
+    """
     length = n // 2 - 1
     cells = []
     for i in range(3):

@@ -1,10 +1,18 @@
-"""The paper's trainer: double DQN (+ RND) for every ecorl task, several seeds of a condition in one process.
+"""The paper's trainer and research pipeline, in layers that import only downward.
 
-Modules: `train.config` (frozen settings, original defaults), `train.network` (batched two-branch
-Q-network with a hand-written backward pass), `train.dqn` (double-DQN step, Adam, clipping), `train.replay`
-(compact replay), `train.rnd`, `train.evaluate` (validation protocol), `train.rundir` (run directory and
-checkpoints), `train.trainer` (the loop) and `train.cli` (``ecorl train``). Importing this package does not
-import torch; ``from train.trainer import Trainer`` does.
+* `train.config` (the frozen `TrainConfig`, original defaults) and `train.tasks` (the task table train uses,
+  derived from the env packages' registrations, and the env contract it relies on);
+* `train.agent`: the maths, no I/O: `network` (batched two-branch Q-network with a hand-written backward
+  pass), `dqn` (double-DQN step, Adam, clipping), `replay` (compact replay), `rnd`;
+* the training loop and its files: `train.trainer` (K seeds of one condition in one process),
+  `train.evaluate` (validation protocol), `train.runlog` (progress, metrics, TensorBoard), `train.rundir`
+  (run directory), `train.checkpoint`, `train.fileio` (atomic writes, locks), `train.policy` (policy files);
+* `train.experiments`: the research pipeline: `catalog` (the paper's experiments as data), `sweep`, `jobs`
+  and `executors` (running them, resumably, locally or on Ray), `table1` (Table 1), `report` (statistics,
+  figures, pages), `video`, `demo`;
+* `train.cli`: the ``ecorl`` command, one module per subcommand (``python -m train.cli``).
+
+Importing this package does not import torch; ``from train.trainer import Trainer`` does.
 """
 
 from train.config import DQNConfig, EnvConfig, EvalConfig, RNDConfig, RunConfig, TrainConfig

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from ecology import validation_seeds
-from train.dqn import DoubleDQN
+from train.agent.dqn import DoubleDQN
 from train.tasks import make_vector_env
 
 EVAL_STREAM = 0xE7A1

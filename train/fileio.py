@@ -43,7 +43,8 @@ def is_temporary(name: str) -> bool:
 
 def fsync_path(path: Path) -> None:
     """Flush ``path`` to disk: a file written by name (by a library), or a directory, to make a rename
-    inside it durable."""
+    inside it durable.
+    """
     fd = os.open(path, os.O_RDONLY)
     try:
         os.fsync(fd)

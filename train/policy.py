@@ -19,11 +19,11 @@ from typing import Any
 import numpy as np
 import torch
 
+from train.agent.network import QNetwork
 from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.config import TrainConfig
 from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
 from train.fileio import atomic_file
-from train.network import QNetwork
 from train.rundir import RunDir, RunDirError
 from train.tasks import get_task, probe
 
@@ -83,7 +83,8 @@ class Policy:
 
     def evaluate(self, rollouts: int = 100, epsilon: float | None = None) -> EvalResult:
         """Success and return on the first ``rollouts`` validation layouts of the test MDP (the paper's
-        protocol: epsilon-greedy with the run's evaluation epsilon unless ``epsilon`` is given)."""
+        protocol: epsilon-greedy with the run's evaluation epsilon unless ``epsilon`` is given).
+        """
         eps = self.cfg.eval.eval_epsilon if epsilon is None else epsilon
         evaluator = Evaluator(get_task(self.task).env_id, self.test_kwargs, 1, rollouts, eps, self._info.num_actions)
         try:
@@ -111,7 +112,8 @@ def resolve_run_dir(path: str | Path) -> Path:
 
 def validation_success(run_dir: Path, step: int | None = None) -> dict[int, float]:
     """Validation success of each seed index at evaluation ``step`` (default: the run's last evaluation);
-    empty if there is no such evaluation."""
+    empty if there is no such evaluation.
+    """
     path = run_dir / "metrics.csv"
     rows = list(csv.DictReader(path.open())) if path.exists() else []
     if not rows:
@@ -197,7 +199,8 @@ def _read_policy_arrays(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
 
 def load_policy_file(path: str | Path) -> Policy:
     """Read a policy file written by `save_policy`; refuse anything else with a one-line reason (not an
-    archive, oversized arrays, parameters that are not finite float32, another format)."""
+    archive, oversized arrays, parameters that are not finite float32, another format).
+    """
     path = Path(path)
     if not zipfile.is_zipfile(path):
         raise _not_a_policy(path, "not an .npz archive")
@@ -236,7 +239,8 @@ def load_policy(path: str | Path, seed_index: int = 0) -> Policy:
 
 def export_policy(run_dir: str | Path, out: str | Path, seed_index: int | None = None) -> Path:
     """Write seed ``seed_index`` of a run as a policy file; by default the seed with the best validation
-    success at the checkpoint's step."""
+    success at the checkpoint's step.
+    """
     run_dir, state = _load_run(run_dir)
     if seed_index is None:
         success = validation_success(run_dir, int(state["step"]))

@@ -1,8 +1,11 @@
-"""The trainable tasks: CLI name -> Gymnasium id, and how to build their (vector) environments."""
+"""The trainable tasks, derived from the env packages' registrations, and how to build their (vector) environments.
+
+The trainer knows an environment only through the contract of `ecology.EcologicalEnv`: its observation
+split, test MDP, task parameters and visitation map.
+"""
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
@@ -10,6 +13,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+import foodcollector
+import gridtasks
+from ecology import NUM_VALIDATION_LAYOUTS, EcologicalEnv, VisitGrid
 from train.config import CONFIG_OWNED_ENV_KWARGS, EnvConfig
 
 
@@ -31,29 +37,23 @@ class Task:
     """Default validation rollouts per seed."""
 
 
-TASKS: dict[str, Task] = {t.name: t for t in (
-    Task("salad", "gridtasks/Salad-v0", "gridtasks", True, "success", 100),
-    Task("hunting", "gridtasks/Hunting-v0", "gridtasks", True, "success", 100),
-    Task("scavenging", "gridtasks/Scavenging-v0", "gridtasks", True, "success", 100),
-    Task("factory", "gridtasks/Factory-v0", "gridtasks", True, "success", 100),
-    Task("walled-salad", "gridtasks/WalledSalad-v0", "gridtasks", True, "success", 100),
-    Task("foodcollector", "foodcollector/FoodCollector-v0", "foodcollector", False, "return", 10),
-)}
-"""Every task the trainer knows, by CLI name."""
+def _task_table() -> dict[str, Task]:
+    """Every registered task: the grid tasks of `gridtasks.ENV_IDS`, then the food collector."""
+    grid = [Task(name, env_id, "gridtasks", True, "success", NUM_VALIDATION_LAYOUTS)
+            for name, env_id in gridtasks.ENV_IDS.items()]
+    food = Task("foodcollector", foodcollector.ENV_ID, "foodcollector", False, "return", 10)
+    return {task.name: task for task in (*grid, food)}
 
-FOOD_COLLECTOR_BINS = 20
-"""Visitation maps of the food collector bin its 100 x 100 arena into this many cells per side."""
-FOOD_COLLECTOR_HALF_SIZE = 50.0
-"""Half the side of the food collector's arena (walls at +-50 units)."""
+
+TASKS: dict[str, Task] = _task_table()
+"""Every task the trainer knows, by CLI name."""
 
 
 def get_task(name: str) -> Task:
-    """The task called ``name``, its package imported (so its ids are registered)."""
+    """The task called ``name`` (its package, imported above, has registered its id)."""
     if name not in TASKS:
         raise ValueError(f"unknown task {name!r}; choose one of: {', '.join(TASKS)}")
-    task = TASKS[name]
-    importlib.import_module(task.package)
-    return task
+    return TASKS[name]
 
 
 @dataclass(frozen=True)
@@ -61,31 +61,29 @@ class EnvInfo:
     """What the trainer needs to know about a task's environment, read from one probe instance."""
 
     obs_dim: int
+    """Length of an observation."""
     view_dim: int
+    """Observation inputs read by the network's view branch (the rest go to the inventory branch)."""
     num_actions: int
-    visit_shape: tuple[int, int]
-    """Shape (rows, cols) of the visitation map, indexed [y, x]."""
-    grid: bool
-    """Agent positions are grid cells (else continuous arena coordinates, binned for the map)."""
+    """Size of the discrete action space."""
+    visit_grid: VisitGrid
+    """The visitation map: its shape and the cell of each agent position."""
     test_kwargs: dict[str, Any]
     """Keyword arguments of the evaluation MDP (`test_mdp_kwargs()`)."""
+
+    @property
+    def visit_shape(self) -> tuple[int, int]:
+        """Shape (rows, cols) of the visitation map, indexed [y, x]."""
+        return self.visit_grid.shape
 
 
 def task_parameters(task: Task) -> tuple[str, ...]:
     """The task parameters ``env_kwargs`` may set (the horizon and the ecology knobs belong to the config)."""
-    import dataclasses
-
     from gymnasium.envs.registration import load_env_creator
 
     entry = gym.spec(task.env_id).entry_point
-    env_class = load_env_creator(entry) if isinstance(entry, str) else entry
-    if hasattr(env_class, "Config"):
-        names = [f.name for f in dataclasses.fields(env_class.Config)]
-    else:
-        from foodcollector.params import PARAM_NAMES
-
-        names = list(PARAM_NAMES)
-    return tuple(n for n in names if n not in CONFIG_OWNED_ENV_KWARGS)
+    env_class: type[EcologicalEnv] = load_env_creator(entry) if isinstance(entry, str) else entry
+    return tuple(n for n in env_class.parameter_names() if n not in CONFIG_OWNED_ENV_KWARGS)
 
 
 def check_env_kwargs(task: Task, env_kwargs: dict[str, Any]) -> None:
@@ -110,15 +108,13 @@ def probe(task: Task, env_cfg: EnvConfig) -> EnvInfo:
     except TypeError as err:  # a parameter of the wrong type: the task's own one-line message
         raise ValueError(str(err)) from None
     try:
-        base = env.unwrapped
+        base: EcologicalEnv = env.unwrapped
         view_dim, inventory_dim = base.observation_split
         obs_dim = int(np.prod(env.observation_space.shape))
         if view_dim + inventory_dim != obs_dim:
             raise ValueError(f"{task.env_id}: observation_split {base.observation_split} does not add up "
                              f"to the observation size {obs_dim}")
-        grid = hasattr(base, "grid_shape")
-        shape = tuple(base.grid_shape) if grid else (FOOD_COLLECTOR_BINS,) * 2
-        return EnvInfo(obs_dim, int(view_dim), int(env.action_space.n), shape, grid,
+        return EnvInfo(obs_dim, int(view_dim), int(env.action_space.n), base.visit_grid,
                        dict(base.test_mdp_kwargs()))
     finally:
         env.close()
@@ -131,36 +127,26 @@ def make_vector_env(env_id: str, num_envs: int, kwargs: dict[str, Any]) -> gym.v
     return gym.vector.SyncVectorEnv([partial(gym.make, env_id, **kwargs)] * num_envs)
 
 
-def visit_cells(agent_pos: np.ndarray, shape: tuple[int, int], grid: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Row and column of each agent's cell in the visitation map: grid cells (x, y) -> [y, x]; the food
-    collector's arena coordinates binned into ``shape`` cells (row from y, column from x, -50 first)."""
-    pos = np.asarray(agent_pos)
-    if grid:
-        return pos[:, 1].astype(np.int64), pos[:, 0].astype(np.int64)
-    scaled = (pos + FOOD_COLLECTOR_HALF_SIZE) * (shape[0] / (2 * FOOD_COLLECTOR_HALF_SIZE))
-    cells = np.clip(scaled.astype(np.int64), 0, shape[0] - 1)
-    return cells[:, 1], cells[:, 0]
-
-
 # ---- environment state as data (for checkpoints) -------------------------------------------------------
 
 
 def env_state(env: gym.vector.VectorEnv) -> dict[str, Any]:
-    """The state of a training vector env as plain data: grid worlds by record field, or each food
-    collector's `get_state` and the vector env's autoreset flags."""
-    if hasattr(env, "worlds"):  # the grid tasks' batched engine: one structured record per world
+    """The state of a training vector env as plain data: the grid tasks' batched worlds by record field, or
+    each world's `get_state` (the food collector's) and the vector env's autoreset flags.
+    """
+    if isinstance(env, gridtasks.GridTaskVectorEnv):  # one structured record per world
         worlds = env.worlds
         return {"kind": "grid", "worlds": {name: worlds[name].copy() for name in worlds.dtype.names}}
-    if isinstance(env, gym.vector.SyncVectorEnv) and all(hasattr(e.unwrapped, "get_state") for e in env.envs):
+    if isinstance(env, gym.vector.SyncVectorEnv):
         return {"kind": "sync", "autoreset": np.asarray(env._autoreset_envs, dtype=bool).copy(),
                 "envs": [e.unwrapped.get_state() for e in env.envs]}
-    raise TypeError(f"{type(env).__name__} has no saveable state (grid worlds or get_state)")
+    raise TypeError(f"{type(env).__name__} has no saveable state (batched grid worlds or get_state)")
 
 
 def restore_env_state(env: gym.vector.VectorEnv, state: dict[str, Any]) -> None:
     """Put `env_state` output back into ``env`` (same task and number of worlds, already reset once)."""
     kind = state.get("kind")
-    if kind == "grid" and hasattr(env, "worlds"):
+    if kind == "grid" and isinstance(env, gridtasks.GridTaskVectorEnv):
         worlds = env.worlds
         saved = state["worlds"]
         if set(saved) != set(worlds.dtype.names):

@@ -13,24 +13,22 @@ from __future__ import annotations
 
 import math
 import os
-import signal
-import threading
 import time
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from train.agent.dqn import DoubleDQN
+from train.agent.network import QNetwork
+from train.agent.replay import Replay
+from train.agent.rnd import RND
 from train.config import TrainConfig
-from train.dqn import DoubleDQN
 from train.evaluate import Evaluator, evaluation_kwargs
-from train.network import QNetwork
-from train.replay import Replay
-from train.rnd import RND
 from train.rundir import RunDir, RunDirError
-from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state, visit_cells
+from train.runlog import RunLogger, postfix, progress_bar, stop_on_signal
+from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state
 
 STREAMS = ("init", "explore", "sample", "rnd")
 """The random streams of each seed, spawned from its SeedSequence in this order."""
@@ -83,7 +81,8 @@ class Trainer:
 
     def _open_run_dir(self, resume: bool) -> None:
         """Lock the run directory; on resume restore the checkpoint and rewrite config.json (and a deleted
-        metrics.csv)."""
+        metrics.csv).
+        """
         try:
             self.run_dir.prepare(self.cfg, resume)
             if resume:
@@ -151,7 +150,7 @@ class Trainer:
         if ended.any():  # the final observation gets its own slot: it is the last transition's next state
             self.replay.add(ended, self.replay.encode(obs))
         self.autoreset = ended
-        rows, cols = visit_cells(info["agent_pos"], self.info.visit_shape, self.info.grid)
+        rows, cols = self.info.visit_grid.cells(info["agent_pos"])
         self.visits[self._agent_index, rows, cols] += 1
         self.train_reward += reward
         self.obs = obs
@@ -229,8 +228,8 @@ class Trainer:
         if self.last_checkpoint < 0:
             self.save()
         resumed = self.resumed_from >= 0
-        logger = _Logger(self.run_dir, cfg, self.step if resumed else None) if self.run_dir is not None else None
-        with _stop_on_signal() as stop, _progress(cfg, self.step) as bar:
+        logger = RunLogger(self.run_dir, cfg, self.step if resumed else None) if self.run_dir is not None else None
+        with stop_on_signal() as stop, progress_bar(cfg, self.step) as bar:
             while self.epoch < cfg.num_epochs and not stop.is_set():
                 before = self.step
                 self.train_epoch()
@@ -239,7 +238,7 @@ class Trainer:
                     rows = self.evaluate()
                     if logger is not None:
                         logger.log(self, rows)
-                    bar.set_postfix(_postfix(rows, self.num_agents, cfg), refresh=False)
+                    bar.set_postfix(postfix(rows, self.num_agents, cfg), refresh=False)
                 if done or stop.is_set() or self.step - self.last_checkpoint >= cfg.run.checkpoint_every:
                     self.save()
                 bar.update(self.step - before)
@@ -353,80 +352,3 @@ def check_replay_memory(num_agents: int, capacity: int, obs_dim: int, binary: bo
                          f"{need // (num_agents * capacity)} bytes), more than this machine's "
                          f"{have / 2**30:.1f} GiB of memory; use fewer --seeds or a smaller --buffer-size")
     return need
-
-
-def _postfix(rows: list[dict[str, Any]], num_agents: int, cfg: TrainConfig) -> dict[str, str]:
-    """Progress-bar summary of the latest evaluation: aggregate steps/s and mean metric over seeds."""
-    out = {"sps": f"{rows[0]['steps_per_s'] * num_agents:.0f}"}
-    success = [r["success"] for r in rows]
-    if not any(math.isnan(s) for s in success):
-        out["success"] = f"{np.mean(success):.2f}"
-    else:
-        out["return"] = f"{np.mean([r['return'] for r in rows]):.1f}"
-    return out
-
-
-@contextmanager
-def _progress(cfg: TrainConfig, initial: int):
-    """A tqdm bar over environment steps per seed (a silent stand-in when disabled)."""
-    from tqdm import tqdm
-
-    bar = tqdm(total=cfg.total_steps, initial=initial, unit="step", disable=not cfg.run.progress,
-               desc=f"{cfg.env.task} x{cfg.run.seeds}", dynamic_ncols=True)
-    try:
-        yield bar
-    finally:
-        bar.close()
-
-
-@contextmanager
-def _stop_on_signal():
-    """An event set by SIGINT/SIGTERM while inside the block (main thread only; elsewhere never set)."""
-    stop = threading.Event()
-    if threading.current_thread() is not threading.main_thread():
-        yield stop
-        return
-    handler = lambda signum, frame: stop.set()  # noqa: E731
-    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield stop
-    finally:
-        for sig, old in previous.items():
-            signal.signal(sig, old)
-
-
-class _Logger:
-    """Writes metrics.csv, the visitation counts and (optionally) TensorBoard scalars at each evaluation."""
-
-    def __init__(self, run_dir: RunDir, cfg: TrainConfig, resumed_at: int | None = None) -> None:
-        """``resumed_at``: the step a resumed run continues from; TensorBoard drops what a killed process
-        logged after it, so no step appears twice."""
-        self.run_dir = run_dir
-        self.writer = None
-        if cfg.run.tensorboard:
-            try:
-                from torch.utils.tensorboard import SummaryWriter  # lazy: TensorBoard is optional
-            except ImportError as err:
-                raise ImportError(f"--tensorboard needs the tensorboard package ({err}); install it with "
-                                  f"pip install 'ecorl[tensorboard]', or drop --tensorboard") from err
-            purge = None if resumed_at is None else resumed_at + 1
-            self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"), purge_step=purge)
-
-    def log(self, trainer: Trainer, rows: list[dict[str, Any]]) -> None:
-        """Persist the latest evaluation."""
-        self.run_dir.write_metrics(trainer.rows)
-        self.run_dir.save_visits(trainer.visits, trainer.step)
-        if self.writer is None:
-            return
-        for key in ("success", "return", "loss", "epsilon", "train_reward", "steps_per_s"):
-            values = [r[key] for r in rows]
-            if not any(math.isnan(v) for v in values):
-                self.writer.add_scalar(f"{key}/mean", float(np.mean(values)), trainer.step)
-                for r in rows:
-                    self.writer.add_scalar(f"{key}/seed_{r['seed']}", r[key], trainer.step)
-
-    def close(self) -> None:
-        """Flush TensorBoard."""
-        if self.writer is not None:
-            self.writer.close()
-

@@ -120,7 +120,8 @@ def world_from_map(env, text: str, agent: tuple[int, int] | None = None, invento
 
 def map_of(world, predators: int = 0) -> str:
     """The world's grid as a map string ('@' where the agent stands on an empty cell, 'P' for the first
-    ``predators`` predators on empty cells), plus a line naming the agent's cell and inventory."""
+    ``predators`` predators on empty cells), plus a line naming the agent's cell and inventory.
+    """
     grid = world["grid"]
     rows = [[CHARS.get(int(c), "?") for c in row] for row in grid]
     for i in range(predators):

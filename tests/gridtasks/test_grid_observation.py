@@ -1,5 +1,6 @@
 """The observation layout: channel·25 + row·5 + col, walls outside the grid, centre under the agent,
-inventory one-hot at the end, predator overlay."""
+inventory one-hot at the end, predator overlay.
+"""
 
 from __future__ import annotations
 

@@ -215,7 +215,8 @@ def test_waypoint_is_a_reward_mode_of_every_grid_task():
 
 def layouts_of_episodes(env, episodes: int) -> list[bytes]:
     """Grid bytes at the start of each of ``episodes`` episodes of a vector env stepping 'interact' only
-    (so no episode is ever solved)."""
+    (so no episode is ever solved).
+    """
     starts = [env.worlds["grid"][0].tobytes()]
     while len(starts) < episodes:
         *_, terminated, truncated, _ = env.step(np.full(1, INTERACT))

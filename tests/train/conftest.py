@@ -1,6 +1,14 @@
-"""Shared fixtures of the trainer tests."""
+"""Shared fixtures of the trainer, experiment and command-line tests: one torch thread, the ``ecorl`` command
+in a fresh interpreter, and every experiment run once at the smoke budget (a task subset where it has many
+tasks).
+"""
 
 from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 import torch
@@ -13,3 +21,58 @@ def one_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(before)
+
+REPO = Path(__file__).resolve().parents[2]
+
+SMOKE_TASKS = {
+    "headline": None,
+    "headline-waypoint": None,
+    "episodic-vs-reset-free": None,
+    "dynamism": ["foodcollector"],
+    "dynamism-sweep": ["salad"],
+    "shaping": ["hunting"],
+    "rnd": None,
+    "walls": None,
+    "measure": ["factory"],
+}
+"""Which tasks of each experiment the smoke fixture runs (None: all of them)."""
+
+
+def run_cli(*args: str, timeout: float = 300, check: bool = True) -> subprocess.CompletedProcess:
+    """``ecorl <args>`` through ``python -m train.cli`` in a fresh interpreter; returns the finished process."""
+    proc = subprocess.run([sys.executable, "-m", "train.cli", *args], cwd=REPO, capture_output=True,
+                          text=True, timeout=timeout, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    if check and proc.returncode != 0:
+        raise AssertionError(f"ecorl {' '.join(args)} exited {proc.returncode}:\n{proc.stdout}\n{proc.stderr}")
+    return proc
+
+
+@pytest.fixture(scope="session")
+def smoke_tasks() -> dict:
+    """`SMOKE_TASKS` as a fixture."""
+    return SMOKE_TASKS
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """`run_cli` as a fixture (test modules do not import each other)."""
+    return run_cli
+
+
+@pytest.fixture(scope="session")
+def smoke_root(tmp_path_factory) -> Path:
+    """A results directory holding every experiment at the smoke budget (one process pool for all)."""
+    from train.experiments.catalog import EXPERIMENTS
+    from train.experiments.sweep import plan, run_jobs, summarize, write_experiment_file
+
+    root = tmp_path_factory.mktemp("smoke")
+    jobs = []
+    for name, tasks in SMOKE_TASKS.items():
+        exp_jobs = plan(EXPERIMENTS[name], "smoke", root, tasks)
+        write_experiment_file(EXPERIMENTS[name], "smoke", exp_jobs, root)
+        jobs += exp_jobs
+    results = run_jobs(jobs, "local", workers=os.cpu_count() or 2, progress=False)
+    failed = [r for r in results if r.status != "done"]
+    assert not failed, "\n".join(f"{r.job}: {r.status}\n{r.error}" for r in failed)
+    assert summarize(results) == {"done": len(jobs)}
+    return root

@@ -90,8 +90,8 @@ def test_kill_during_a_policy_export_keeps_the_previous_file(finished_run, tmp_p
 
 
 def test_kill_during_a_report_keeps_the_previous_report(tmp_path):
-    from train.experiments import get_experiment
-    from train.sweep import plan, run_jobs, write_experiment_file
+    from train.experiments.catalog import get_experiment
+    from train.experiments.sweep import plan, run_jobs, write_experiment_file
 
     exp = get_experiment("rnd")
     jobs = plan(exp, "smoke", tmp_path, ["factory"])[:1]

@@ -221,8 +221,9 @@ def test_saving_a_policy_writes_no_temporary(policy, tmp_path):
 
 
 def test_a_finished_sweep_run_rebuilds_its_deleted_metrics(tmp_path):
-    from train.experiments import get_experiment
-    from train.sweep import execute, plan
+    from train.experiments.catalog import get_experiment
+    from train.experiments.jobs import execute
+    from train.experiments.sweep import plan
 
     job = plan(get_experiment("rnd"), "smoke", tmp_path, ["factory"])[0]
     assert execute(job).status == "done"

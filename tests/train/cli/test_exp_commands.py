@@ -1,0 +1,125 @@
+"""The subcommands: parsers, ``measure``, ``video``, ``run --list/--dry-run``, and their wiring into ``ecorl``."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+
+import cv2
+import numpy as np
+import pytest
+
+from train import cli
+
+
+def _frames(path) -> int:
+    cap = cv2.VideoCapture(str(path))
+    n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+    cap.release()
+    return n
+
+
+def test_parsers_attach_to_any_subparsers():
+    parser = argparse.ArgumentParser()
+    sub = parser.add_subparsers(dest="command", required=True)
+    for command in cli.COMMANDS:
+        command.add_parser(sub)
+    args = parser.parse_args(["run", "dynamism", "--task", "salad", "hunting", "--budget", "smoke", "--jobs", "3"])
+    assert (args.experiment, args.task, args.budget, args.jobs, args.executor) == ("dynamism", ["salad", "hunting"],
+                                                                                   "smoke", 3, "local")
+    args = parser.parse_args(["measure", "entropy", "--task", "all"])
+    assert (args.measurement, args.task, args.seeds, args.steps) == ("entropy", "all", 25, 50_000)
+    args = parser.parse_args(["video", "salad", "--random", "--steps", "5"])
+    assert args.random and args.steps == 5 and args.handler is cli.video.handle
+    with pytest.raises(SystemExit):
+        parser.parse_args(["video", "salad", "--random", "--policy", "x"])
+
+
+def test_ecorl_cli_has_the_subcommands_once_wired():
+    parser = cli.build_parser()
+    names = set(parser._subparsers._group_actions[0].choices)
+    assert {"run", "report", "measure", "video"} <= names
+
+
+def test_run_list_and_dry_run(capsys, tmp_path):
+    assert cli.main(["run", "--list"]) == 0
+    out = capsys.readouterr().out
+    assert "headline (Fig. 4 (salad panel))" in out and "paper  20 runs x 10 seeds" in out
+    assert cli.main(["run", "shaping", "--task", "foodcollector", "--budget", "paper", "--dry-run",
+                          "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 2 and all(line.startswith("[   new] shaping/foodcollector/") for line in out)
+    assert "10 seeds x 1250200 steps" in out[0] and "shaping=linear:1:0:280000" in out[0]
+    assert not (tmp_path / "shaping").exists()
+    with pytest.raises(SystemExit):
+        cli.main(["run", "rnd", "--task", "salad"])
+
+
+def test_measure_writes_tables(capsys, tmp_path):
+    assert cli.main(["measure", "hitting-time", "--task", "salad", "--seeds", "3", "--steps", "300",
+                          "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "static non-episodic" in out and "shaped non-episodic" in out and "±" in out
+    with open(tmp_path / "hitting-time_salad.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["condition"] for r in rows] == ["static non-episodic", "dynamic non-episodic", "shaped non-episodic"]
+    assert all(int(r["seeds"]) == 3 and 0 < float(r["mean"]) <= 300 for r in rows)
+    assert "| static non-episodic |" in (tmp_path / "hitting-time_salad.md").read_text()
+
+
+def test_measure_all_tasks(tmp_path, capsys):
+    assert cli.main(["measure", "entropy", "--task", "all", "--seeds", "2", "--steps", "50",
+                          "--out", str(tmp_path)]) == 0
+    assert sorted(p.name for p in tmp_path.glob("*.csv")) == sorted(
+        f"entropy_{t}.csv" for t in ("salad", "hunting", "scavenging", "factory", "walled-salad"))
+
+
+def test_random_video(tmp_path, capsys):
+    out = tmp_path / "hunt.mp4"
+    assert cli.main(["video", "hunting", "--random", "--steps", "12", "--out", str(out)]) == 0
+    assert capsys.readouterr().out.strip() == str(out)
+    assert _frames(out) >= 13
+
+
+def test_policy_video_from_a_run(smoke_root, tmp_path, capsys):
+    run_dir = smoke_root / "headline" / "salad" / "dynamic-reset-free"
+    out = tmp_path / "policy.mp4"
+    assert cli.main(["video", "salad", "--policy", str(run_dir / "checkpoint.npz"), "--agent", "1",
+                          "--steps", "20", "--out", str(out), "--seed", "3"]) == 0
+    assert _frames(out) >= 21
+    assert cli.main(["video", "salad", "--policy", str(run_dir), "--train-env", "--steps", "10",
+                          "--out", str(tmp_path / "train.mp4")]) == 0
+    assert cli.main(["video", "hunting", "--policy", str(run_dir), "--out", str(tmp_path / "x.mp4")]) == 2
+    assert "trained on 'salad'" in capsys.readouterr().err
+    assert cli.main(["video", "salad", "--policy", str(run_dir), "--agent", "5"]) == 2
+    assert cli.main(["video", "salad", "--policy", str(tmp_path)]) == 2
+
+
+class _CountingEnv:
+    """Episodes of ``length`` steps, solved when the action was 1 on the last step; frames number the steps."""
+
+    def __init__(self, length: int) -> None:
+        self.length, self.t, self.resets = length, 0, 0
+
+    def reset(self, seed=None):
+        self.t, self.resets = 0, self.resets + 1
+        return 0, {}
+
+    def step(self, action):
+        self.t += 1
+        end = self.t == self.length
+        return 0, 0.0, end, False, {"solved": end and action == 1}
+
+    def render(self):
+        return np.full((2, 2, 3), self.t, np.uint8)
+
+
+def test_film_counts_whole_episodes_and_solved_ones():
+    from train.experiments.video import film_rollout
+
+    actions = iter([0, 0, 1, 0, 0, 0, 0, 0, 1])
+    film = film_rollout(_CountingEnv(3), lambda obs: next(actions), seed=0, episodes=3)
+    assert (film.episodes, film.solved) == (3, 2)
+    assert len(film.frames) == 1 + 3 * 3 + 2  # first reset, 9 steps, two resets between episodes
+    film = film_rollout(_CountingEnv(3), lambda obs: 1, seed=0, steps=4)
+    assert (film.episodes, film.solved, len(film.frames)) == (2, 1, 1 + 4 + 1)

@@ -1,0 +1,83 @@
+"""The ``ecorl`` CLI: flags generated from the config dataclasses, help from their docstrings."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from train.cli import build_parser, main
+from train.cli.flags import config_from_args
+from train.cli.train import default_run_dir
+from train.config import SECTIONS, DQNConfig, TrainConfig, field_docs
+
+
+def _parse(*argv):
+    return config_from_args(build_parser().parse_args(["train", "salad", *argv]))
+
+
+def test_every_field_is_documented_and_has_a_flag():
+    help_text = " ".join(build_parser().parse_args(["train", "salad"]).command_parser.format_help().split())
+    for section in SECTIONS.values():
+        docs = field_docs(section)
+        for f in dataclasses.fields(section):
+            assert docs.get(f.name), f"{section.__name__}.{f.name} has no docstring"
+            if f.name != "task":
+                flag = "--env-kwarg" if f.name == "env_kwargs" else "--" + f.name.replace("_", "-")
+                assert flag in help_text
+    assert field_docs(DQNConfig)["lr"] in help_text
+
+
+def test_defaults_are_the_original_hyperparameters():
+    cfg = _parse()
+    assert cfg == TrainConfig().replace(task="salad")
+    d = cfg.dqn
+    assert (d.lr, d.gamma, d.batch_size, d.buffer_size, d.tau, d.grad_clip) == (1e-4, 0.99, 64, 500_000, 1e-3, 5.0)
+    assert (d.eps_start, d.eps_end, d.eps_decay_steps, d.warmup_steps) == (1.0, 0.1, 90_000, 200)
+    assert (d.epoch_steps, d.updates_per_epoch, cfg.env.horizon, cfg.eval.eval_every) == (500, 500, 200, 5000)
+    assert (d.view_layers, d.inventory_layers, d.head_layers) == ((64, 64, 32), (16, 16, 16), (16, 16))
+
+
+def test_flags_set_config_fields():
+    cfg = _parse("--dynamism", "0.1", "--shaping", "linear:1:0:280000", "--reset-free", "--reward", "subgoal",
+                 "--seeds", "10", "--steps", "5000", "--rnd", "--rnd-weight", "0.5", "--lr", "3e-4",
+                 "--view-layers", "32", "32", "--env-kwarg", "initial_count=1", "--env-kwarg", "grid_size=10")
+    assert cfg.env.reset_free and cfg.env.dynamism == 0.1 and cfg.env.shaping == "linear:1:0:280000"
+    assert cfg.env.env_kwargs == {"initial_count": 1, "grid_size": 10}
+    assert cfg.run.seeds == 10 and cfg.rnd.rnd and cfg.rnd.rnd_weight == 0.5 and cfg.dqn.lr == 3e-4
+    assert cfg.dqn.view_layers == (32, 32)
+
+
+def test_reset_free_and_episodic_exclude_each_other():
+    assert not _parse("--episodic").env.reset_free
+    with pytest.raises(SystemExit):
+        _parse("--reset-free", "--episodic")
+
+
+def test_unknown_task_lists_the_choices(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "pacman"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "unknown task 'pacman'" in err and "salad, hunting, scavenging, factory, walled-salad, foodcollector" in err
+
+
+def test_invalid_values_are_reported(capsys):
+    with pytest.raises(SystemExit):
+        main(["train", "salad", "--reward", "dense"])
+    assert main(["train", "salad", "--shaping", "cubic:1"]) == 2
+    assert "malformed shaping schedule" in capsys.readouterr().err
+
+
+def test_default_run_dir_names_the_condition():
+    cfg = _parse("--dynamism", "0.1", "--reset-free", "--seeds", "3", "--shaping", "linear:1:0:1000")
+    assert str(default_run_dir(cfg)) == "runs/salad-p0.1-slinear_1_0_1000-resetfree-sparse-seeds0-2"
+
+
+def test_cli_trains_a_tiny_run(tmp_path, capsys):
+    code = main(["train", "hunting", "--steps", "700", "--updates-per-epoch", "10", "--eval-every", "500",
+                 "--eval-rollouts", "2", "--eval-horizon", "10", "--buffer-size", "1000", "--no-progress",
+                 "--out", str(tmp_path / "run")])
+    assert code == 0
+    assert "mean success over 1 seed(s)" in capsys.readouterr().err
+    assert (tmp_path / "run" / "metrics.csv").exists()

@@ -1,0 +1,49 @@
+"""Every experiment's jobs build the same `TrainConfig` as before the restructure (issue 11).
+
+``catalog_golden.json`` was dumped from the code before train/ was split into layers (commit dc84084): the
+defaults of `TrainConfig`, the experiments' order, and for every experiment its description and each job's
+settings that differ from the defaults.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from train.config import TrainConfig
+from train.experiments.catalog import BUDGETS, EXPERIMENTS, job_config
+
+GOLDEN = json.loads((Path(__file__).parent / "catalog_golden.json").read_text())
+
+
+def _flat(cfg: TrainConfig) -> dict:
+    """Every field of a config by its section-less name (JSON values)."""
+    return json.loads(json.dumps({k: v for section in cfg.to_dict().values() for k, v in section.items()}))
+
+
+def test_the_defaults_are_unchanged():
+    assert _flat(TrainConfig()) == GOLDEN["defaults"]
+
+
+def test_the_same_experiments_exist():
+    assert list(EXPERIMENTS) == GOLDEN["order"]
+
+
+@pytest.mark.parametrize("name", list(GOLDEN["experiments"]))
+def test_every_job_builds_the_same_config(name):
+    exp, golden = EXPERIMENTS[name], GOLDEN["experiments"][name]
+    assert json.loads(json.dumps(exp.describe())) == golden["describe"]
+    jobs = {}
+    for budget in BUDGETS:
+        b = exp.budget(budget)
+        for task, conds in exp.conditions.items():
+            for c in conds:
+                key = f"{budget}/{task}/{c.name}"
+                if c.measure:
+                    jobs[key] = {"measure": c.measure, "seeds": b.seeds, "steps": b.steps_for(task)}
+                else:
+                    flat = _flat(job_config(exp, task, c, b))
+                    jobs[key] = {k: v for k, v in flat.items() if v != GOLDEN["defaults"][k]}
+    assert jobs == golden["jobs"]

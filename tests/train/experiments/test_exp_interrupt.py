@@ -1,0 +1,152 @@
+"""An interrupted sweep (SIGKILL of its whole process group) finishes on re-run with nothing lost or repeated."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from train.checkpoint import CHECKPOINT_NAME, read_checkpoint
+from train.experiments.catalog import get_experiment
+from train.experiments.jobs import DONE_FILE, execute
+from train.experiments.sweep import plan
+
+REPO = Path(__file__).resolve().parents[3]
+ARGS = ("run", "episodic-vs-reset-free", "--budget", "smoke", "--steps", "4000", "--jobs", "2", "--no-progress")
+DETERMINISTIC = ("step", "seed", "epsilon", "loss", "success", "return", "train_reward")
+"""metrics.csv columns that must match exactly (steps_per_s is a timing)."""
+
+
+def _metrics(run_dir: Path) -> list[tuple]:
+    with open(run_dir / "metrics.csv") as f:
+        return [tuple(row[k] for k in DETERMINISTIC) for row in csv.DictReader(f)]
+
+
+def _run_dirs(root: Path) -> list[Path]:
+    return sorted(p.parent for p in root.glob("episodic-vs-reset-free/salad/*/config.json"))
+
+
+def _evaluated_twice(out: Path) -> bool:
+    """True once a run has logged its second evaluation (so its step-700 checkpoint is on disk)."""
+    for path in out.glob("episodic-vs-reset-free/salad/*/metrics.csv"):
+        try:
+            if "\n1200," in path.read_text():
+                return True
+        except FileNotFoundError:
+            pass
+    return False
+
+
+def _checkpoint_step(run_dir: Path) -> int:
+    """The step of a run's checkpoint (read from its manifest, no arrays); -1: none."""
+    path = run_dir / CHECKPOINT_NAME
+    return read_checkpoint(path, keys=[])["step"] if path.exists() else -1
+
+
+def _kill_when_training(out: Path) -> None:
+    """Start the sweep in its own process group and SIGKILL the group once a run is part-way through."""
+    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *ARGS, "--out", str(out)], cwd=REPO,
+                            start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 240
+    try:
+        while not _evaluated_twice(out):
+            assert proc.poll() is None, f"sweep ended before it could be interrupted: {proc.stderr.read()}"
+            assert time.monotonic() < deadline, "no evaluation logged within 240 s"
+            time.sleep(0.05)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        proc.stderr.close()
+
+
+def test_sigkill_then_rerun_matches_an_uninterrupted_sweep(tmp_path, cli):
+    killed, clean = tmp_path / "killed", tmp_path / "clean"
+    _kill_when_training(killed)
+    dirs = _run_dirs(killed)
+    assert dirs and not all((d / DONE_FILE).exists() for d in dirs), "the kill came after the sweep finished"
+    assert any(0 < _checkpoint_step(d) < 4200 for d in dirs)  # a run resumes from mid-way, not from scratch
+
+    proc = cli(*ARGS, "--out", str(killed))
+    assert "2 done" in proc.stderr or "1 done" in proc.stderr
+    cli(*ARGS, "--out", str(clean))
+
+    assert [d.name for d in _run_dirs(killed)] == [d.name for d in _run_dirs(clean)] == ["static-episodic",
+                                                                                         "static-reset-free"]
+    for a, b in zip(_run_dirs(killed), _run_dirs(clean)):
+        rows = _metrics(a)
+        assert rows == _metrics(b), a.name  # nothing lost, repeated or changed
+        assert len(rows) == 2 * 8 and len({r[:2] for r in rows}) == len(rows)
+        np.testing.assert_array_equal(np.load(a / "visits.npy"), np.load(b / "visits.npy"))
+        assert json.loads((a / DONE_FILE).read_text())["total_steps"] == 4200
+
+    rerun = cli(*ARGS, "--out", str(killed))  # everything done: skipped, files untouched
+    assert "2 skipped" in rerun.stderr
+
+
+def test_longer_budget_resumes_a_finished_run(tmp_path):
+    exp = get_experiment("rnd")
+    short = plan(exp, "smoke", tmp_path, ["factory"])[:1]
+    assert execute(short[0]).status == "done"
+    assert execute(short[0]).status == "skipped"
+    longer = plan(exp, "smoke", tmp_path, ["factory"], steps=1700)[:1]
+    assert execute(longer[0]).status == "done"
+    steps = sorted({row[0] for row in _metrics(Path(longer[0].run_dir))}, key=int)
+    assert steps == ["700", "1200", "1700"]
+
+
+def test_a_run_killed_before_its_first_checkpoint_starts_afresh(tmp_path):
+    job = plan(get_experiment("rnd"), "smoke", tmp_path, ["factory"])[0]
+    run_dir = Path(job.run_dir)
+    run_dir.mkdir(parents=True)
+    (run_dir / "config.json").write_text("{}")  # what a kill right after the trainer's prepare() leaves
+    assert execute(job).status == "done"
+    (run_dir / "notes.txt").write_text("mine")
+    (run_dir / CHECKPOINT_NAME).unlink()
+    (run_dir / DONE_FILE).unlink()
+    result = execute(job)  # unknown files are never deleted
+    assert result.status == "failed" and "notes.txt" in result.error
+
+
+def test_changed_settings_are_refused(tmp_path):
+    exp = get_experiment("rnd")
+    job = plan(exp, "smoke", tmp_path, ["factory"])[0]
+    assert execute(job).status == "done"
+    changed = plan(exp, "smoke", tmp_path, ["factory"], seeds=3)[0]
+    result = execute(changed)
+    assert result.status == "failed" and "different settings" in result.error
+
+
+@pytest.mark.parametrize("executor", ["nope"])
+def test_unknown_executor(executor):
+    from train.experiments.sweep import run_jobs
+
+    with pytest.raises(ValueError, match="choose local or ray"):
+        run_jobs(plan(get_experiment("rnd"), "smoke", "/nonexistent"), executor, progress=False)
+
+
+@pytest.mark.slow
+def test_ctrl_c_stops_cleanly_and_the_rerun_resumes(tmp_path, cli):
+    out = tmp_path / "ctrl-c"
+    args = ("run", "rnd", "--budget", "smoke", "--steps", "20000", "--jobs", "2", "--no-progress", "--out", str(out))
+    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while not list(out.glob("rnd/factory/*/metrics.csv")):
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.1)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and "re-run the same command to resume" in err
+    runs = sorted(out.glob("rnd/factory/*"))
+    assert len(runs) < 4 or not all((r / DONE_FILE).exists() for r in runs)  # queued runs did not start
+    assert all((r / CHECKPOINT_NAME).exists() for r in runs if (r / "config.json").exists())
+    cli(*args)
+    assert all((out / "rnd" / "factory" / c / DONE_FILE).exists() for c in ("static", "rnd", "dynamic", "env-shaping"))

@@ -1,0 +1,157 @@
+"""Policy files: export from a run, load, act like the run's network, refuse bad files; the shipped ones."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+
+import numpy as np
+import pytest
+import torch
+
+from train import cli
+from train.policy import (
+    POLICY_DIR,
+    export_policy,
+    load_policy,
+    load_policy_file,
+    policy_from_run,
+    save_policy,
+    shipped_policy,
+)
+
+RUN = ("headline", "salad", "dynamic-reset-free")
+
+
+@pytest.fixture
+def run_dir(smoke_root):
+    """A finished smoke run of salad (several seeds)."""
+    return smoke_root.joinpath(*RUN)
+
+
+def _random_obs(policy, n: int = 64) -> torch.Tensor:
+    draws = np.random.default_rng(0).integers(0, 2, (1, n, policy.obs_dim))
+    return torch.from_numpy(draws.astype(np.float32))
+
+
+def test_exported_policy_acts_like_the_run(run_dir, tmp_path):
+    seeds = json.loads((run_dir / "config.json").read_text())["run"]["seeds"]
+    assert seeds >= 2
+    for index in range(seeds):
+        from_run = policy_from_run(run_dir, index)
+        path = export_policy(run_dir, tmp_path / f"p{index}.npz", index)
+        assert path.stat().st_size < 1_000_000
+        loaded = load_policy(path)
+        obs = _random_obs(loaded)
+        np.testing.assert_array_equal(loaded.greedy(obs), from_run.greedy(obs))
+        assert loaded.task == "salad" and loaded.seed == from_run.seed and loaded.meta["agent"] == index
+    seeds_differ = [policy_from_run(run_dir, i).greedy(obs) for i in range(2)]
+    assert not np.array_equal(*seeds_differ), "two seeds' networks should not act identically"
+
+
+def test_metadata_pairs_the_checkpoint_with_its_evaluation(run_dir):
+    policy = policy_from_run(run_dir, 1)
+    rows = [r for r in csv.DictReader((run_dir / "metrics.csv").open()) if int(r["step"]) == policy.meta["step"]]
+    assert rows, "the checkpoint's step should have an evaluation row"
+    row = next(r for r in rows if int(r["seed"]) == policy.seed)
+    assert policy.meta["validation_success"] == float(row["success"])
+    assert policy.seed == policy.cfg.run.seed_list[1]
+
+
+def test_export_picks_the_best_seed_at_the_checkpoint(run_dir, tmp_path):
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    step = policy_from_run(copy, 0).meta["step"]
+    rows = list(csv.DictReader((copy / "metrics.csv").open()))
+    last_seed = max(int(r["seed"]) for r in rows)
+    for r in rows:  # make the last seed the best at the checkpoint's step, and the first best elsewhere
+        at_checkpoint = int(r["step"]) == step
+        r["success"] = str(0.9 if at_checkpoint and int(r["seed"]) == last_seed else
+                           0.1 if at_checkpoint else float(int(r["seed"]) == 0))
+    with (copy / "metrics.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    policy = load_policy(export_policy(copy, tmp_path / "best.npz"))
+    assert policy.seed == last_seed and policy.meta["validation_success"] == 0.9
+
+
+def test_bad_policy_files_are_refused(run_dir, tmp_path):
+    junk = tmp_path / "junk.npz"
+    junk.write_text("not a policy")
+    with pytest.raises(ValueError, match="not an ecorl policy file.*ecorl export"):
+        load_policy(junk)
+    np.savez(tmp_path / "other.npz", weights=np.zeros(3))
+    with pytest.raises(ValueError, match="not an ecorl policy file"):
+        load_policy(tmp_path / "other.npz")
+    good = load_policy(export_policy(run_dir, tmp_path / "good.npz", 0))
+    with np.load(tmp_path / "good.npz") as data:
+        header = json.loads(str(data["header"]))
+        params = data["params"]
+    np.savez(tmp_path / "future.npz", params=params, header=np.array(json.dumps({**header, "format": 99})))
+    with pytest.raises(ValueError, match="format 99"):
+        load_policy(tmp_path / "future.npz")
+    good.params = good.params[:, :-1]
+    save_policy(good, tmp_path / "cut.npz")
+    with pytest.raises(ValueError, match="parameters have shape"):
+        load_policy_file(tmp_path / "cut.npz")
+    with pytest.raises(ValueError, match="must end in .npz"):
+        save_policy(good, tmp_path / "policy.pt")
+    with pytest.raises(FileNotFoundError, match="no policy file"):
+        load_policy(tmp_path / "missing.npz")
+
+
+def test_export_and_video_commands(run_dir, tmp_path, capsys):
+    out = tmp_path / "salad.npz"
+    assert cli.main(["export", str(run_dir), "--out", str(out), "--agent", "1"]) == 0
+    assert "agent 1" in capsys.readouterr().out
+    video = tmp_path / "salad.mp4"
+    assert cli.main(["video", "salad", "--policy", str(out), "--steps", "8", "--out", str(video)]) == 0
+    assert video.stat().st_size > 0
+    assert cli.main(["video", "hunting", "--policy", str(out), "--out", str(tmp_path / "x.mp4")]) == 2
+    assert "trained on 'salad'" in capsys.readouterr().err
+    assert cli.main(["export", str(tmp_path), "--out", str(out)]) == 2
+    assert "not a run directory" in capsys.readouterr().err
+    assert cli.main(["evaluate", str(out), "--rollouts", "5"]) == 0
+    printed = capsys.readouterr().out
+    assert "salad, 5 validation layouts" in printed and "policy (epsilon 0.1)" in printed
+    assert "uniform random" in printed
+    with pytest.raises(SystemExit):
+        cli.main(["evaluate", str(out), "--epsilon", "1.5"])
+    assert "probability in [0, 1]" in capsys.readouterr().err
+
+
+def test_a_corrupt_checkpoint_is_refused_by_name(run_dir, tmp_path, capsys):
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    with (copy / "checkpoint.npz").open("r+b") as f:
+        f.seek(-100, 2)
+        f.write(b"x" * 100)
+    for command in (["export", str(copy), "--out", str(tmp_path / "p.npz")], ["evaluate", str(copy)],
+                    ["video", "salad", "--policy", str(copy), "--steps", "2"]):
+        assert cli.main(command) == 2
+        assert "corrupt" in capsys.readouterr().err
+
+
+def test_video_defaults_to_the_shipped_policy(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["video", "scavenging", "--steps", "5"]) == 0
+    written = capsys.readouterr()
+    name = "scavenging-trained.mp4" if shipped_policy("scavenging") else "scavenging-random.mp4"
+    assert written.out.strip() == name and (tmp_path / name).exists()
+    assert cli.main(["video", "foodcollector", "--steps", "3"]) == 0
+    assert "no trained policy for foodcollector" in capsys.readouterr().err
+
+
+SHIPPED = sorted(POLICY_DIR.glob("*.npz"))
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
+def test_shipped_policy_beats_a_random_policy(path):
+    policy = load_policy_file(path)
+    assert path.stem == policy.task
+    trained = policy.evaluate(rollouts=100)
+    random = policy.evaluate(rollouts=100, epsilon=1.0)  # the paper's protocol with a uniform random policy
+    assert trained.success[0] >= random.success[0] + 0.25, (trained, random)
+    assert trained.returns[0] > random.returns[0], (trained, random)

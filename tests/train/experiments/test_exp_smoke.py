@@ -1,0 +1,86 @@
+"""Every experiment end to end at the smoke budget: runs, then the report over all of them."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from train.experiments.catalog import EXPERIMENTS
+from train.experiments.jobs import DONE_FILE
+from train.experiments.sweep import EXPERIMENT_FILE
+
+EXPECTED_FILES = ("config.json", "metrics.csv", "checkpoint.npz", "visits.npy", DONE_FILE)
+
+
+@pytest.fixture(scope="module")
+def report(smoke_root, cli):
+    """`ecorl report` over the whole smoke results directory (videos rendered where asked for)."""
+    proc = cli("report", str(smoke_root))
+    return smoke_root, proc.stdout
+
+
+def test_every_run_directory_is_complete(smoke_root, smoke_tasks):
+    for name, tasks in smoke_tasks.items():
+        exp = EXPERIMENTS[name]
+        info = json.loads((smoke_root / name / EXPERIMENT_FILE).read_text())
+        assert info["name"] == name and info["budget"] == "smoke"
+        for task in exp.select_tasks(tasks):
+            for cond in exp.conditions[task]:
+                run = smoke_root / name / task / cond.name
+                done = json.loads((run / DONE_FILE).read_text())
+                if exp.is_measurement:
+                    assert (run / "table.csv").exists() and (run / "table.md").exists()
+                    continue
+                for f in EXPECTED_FILES:
+                    assert (run / f).exists(), run / f
+                assert done["total_steps"] == 1200 and done["seeds"] == 2
+                with open(run / "metrics.csv") as fh:
+                    rows = list(csv.DictReader(fh))
+                assert [int(r["step"]) for r in rows] == [700, 700, 1200, 1200]
+                assert len(list((run / "visits").glob("*.npy"))) == 2
+
+
+def test_report_writes_figures_tables_and_page(report, smoke_tasks):
+    root, stdout = report
+    md = (root / "report.md").read_text()
+    page = (root / "index.html").read_text()
+    for name in smoke_tasks:
+        assert f"## {name} (" in md
+        if name != "measure":
+            assert (root / "figures" / f"{name}_curves.png").stat().st_size > 10_000
+            assert f"figures/{name}_curves.png" in page
+    for name, task in (("headline", "salad"), ("episodic-vs-reset-free", "salad"), ("walls", "walled-salad")):
+        assert (root / "figures" / f"{name}_{task}_heatmaps.png").exists()
+    assert "≈ 70%" in md and "≈ 12%" in md  # the paper's text-quoted (approximate) values beside ours
+    assert "= 908 ± 480" in md  # Table 1 (exact)
+    assert str(root / "report.md") in stdout
+
+
+def test_headline_report_has_videos_playable_in_browsers(report):
+    root, _ = report
+    for cond in EXPERIMENTS["headline"].conditions["salad"]:
+        assert (root / "headline" / "salad" / cond.name / "video.mp4").stat().st_size > 1000
+    page = (root / "index.html").read_text()
+    assert page.count("<video") == 4 and page.count("video/webm") == 4
+    assert len(list((root / "figures" / "videos").glob("*.webm"))) == 4
+    assert not (root / "walls" / "walled-salad" / "no-shaping-episodic" / "video.mp4").exists()
+
+
+def test_measure_rows_match_the_papers_conditions(smoke_root):
+    with open(smoke_root / "measure" / "factory" / "hitting-time" / "table.csv") as fh:
+        hitting = [r["condition"] for r in csv.DictReader(fh)]
+    with open(smoke_root / "measure" / "factory" / "entropy" / "table.csv") as fh:
+        entropy = [r["condition"] for r in csv.DictReader(fh)]
+    assert hitting == ["static non-episodic", "dynamic non-episodic", "shaped non-episodic"]
+    assert entropy == [f"dynamism p={p}" for p in ("0", "0.01", "0.05", "0.1", "0.5")]
+
+
+def test_report_of_one_experiment_directory(smoke_root, cli, tmp_path):
+    cli("report", str(smoke_root / "rnd"), "--no-videos")
+    md = (smoke_root / "rnd" / "report.md").read_text()
+    assert "## rnd (Fig. 6 (right))" in md and "static + RND" in md and "## walls" not in md
+    assert (smoke_root / "rnd" / "figures" / "rnd_curves.png").exists()
+    proc = cli("report", str(tmp_path), check=False)
+    assert proc.returncode == 2 and "holds no experiment results" in proc.stderr

@@ -1,0 +1,144 @@
+"""Double DQN for K agents at once: one flat parameter row per agent, batched products throughout.
+
+Every agent (seed) has its own parameters, optimiser moments, gradient clipping and random streams, so an
+agent trained beside others follows the same trajectory as when trained alone (up to float rounding).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import torch
+
+from train.agent.network import QNetwork
+from train.config import DQNConfig
+
+Tensor = torch.Tensor
+
+
+def double_dqn_target(q_next_online: Tensor, q_next_target: Tensor, reward: Tensor, terminated: Tensor,
+                      gamma: float) -> Tensor:
+    """The target r + gamma * (1 - terminated) * Q_target(s', argmax_a Q_online(s', a)), elementwise.
+
+    ``terminated`` marks true terminal states only: a time-limit truncation is not one, so its transition
+    bootstraps from the next observation like any other.
+    """
+    best = q_next_online.argmax(-1, keepdim=True)
+    next_value = q_next_target.gather(-1, best).squeeze(-1)
+    return reward + gamma * (1.0 - terminated) * next_value
+
+
+def clip_grad_norm_per_agent(grad: Tensor, max_norm: float) -> Tensor:
+    """Scale each agent's gradient row (in place) to global norm at most ``max_norm``; return the norms."""
+    norms = torch.linalg.vector_norm(grad, dim=1, keepdim=True)
+    grad.mul_((max_norm / (norms + 1e-6)).clamp_(max=1.0))
+    return norms.squeeze(1)
+
+
+class FlatAdam:
+    """Adam (PyTorch's update rule, no weight decay) on a flat (K, P) parameter buffer.
+
+    Adam acts elementwise, so one buffer holding every agent is the same as one optimiser per agent.
+    """
+
+    def __init__(self, params: Tensor, lr: float, eps: float = 1e-8, betas: tuple[float, float] = (0.9, 0.999),
+                 fused: bool = True):
+        self.lr, self.eps, self.betas = lr, eps, betas
+        self.exp_avg = torch.zeros_like(params)
+        self.exp_avg_sq = torch.zeros_like(params)
+        self._step_tensor = torch.zeros((), dtype=torch.float32)
+        # PyTorch's fused kernel (what torch.optim.Adam(fused=True) calls) does the whole update in one
+        # pass, ~3x faster here than the six elementwise operations below, which remain the fallback.
+        self.fused = fused and hasattr(torch, "_fused_adam_")
+
+    @property
+    def steps(self) -> int:
+        """Updates taken so far."""
+        return int(self._step_tensor.item())
+
+    def step(self, params: Tensor, grad: Tensor) -> None:
+        """Apply one Adam step to ``params`` in place."""
+        beta1, beta2 = self.betas
+        self._step_tensor += 1
+        if self.fused:
+            torch._fused_adam_([params], [grad], [self.exp_avg], [self.exp_avg_sq], [], [self._step_tensor],
+                               lr=self.lr, beta1=beta1, beta2=beta2, weight_decay=0.0, eps=self.eps,
+                               amsgrad=False, maximize=False)
+            return
+        self.exp_avg.lerp_(grad, 1.0 - beta1)
+        self.exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1.0 - beta2)
+        steps = self.steps
+        bias1 = 1.0 - beta1 ** steps
+        bias2_sqrt = (1.0 - beta2 ** steps) ** 0.5
+        denom = self.exp_avg_sq.sqrt().div_(bias2_sqrt).add_(self.eps)
+        params.addcdiv_(self.exp_avg, denom, value=-self.lr / bias1)
+
+    def state_dict(self) -> dict[str, Any]:
+        """The optimiser state (moments and step count)."""
+        return {"exp_avg": self.exp_avg.clone(), "exp_avg_sq": self.exp_avg_sq.clone(), "steps": self.steps}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a `state_dict`."""
+        self.exp_avg.copy_(state["exp_avg"])
+        self.exp_avg_sq.copy_(state["exp_avg_sq"])
+        self._step_tensor.fill_(state["steps"])
+
+
+class DoubleDQN:
+    """Online and target Q-networks of K agents, their optimiser, and the double-DQN gradient step."""
+
+    def __init__(self, net: QNetwork, cfg: DQNConfig, init_rngs: Sequence[np.random.Generator]) -> None:
+        self.net, self.cfg = net, cfg
+        rows, target_rows = [], []
+        for rng in init_rngs:  # per agent, online then target, so the draws do not depend on K
+            rows.append(net.init(rng, cfg.init))
+            target_rows.append(rows[-1] if cfg.target_init == "copy" else net.init(rng, cfg.init))
+        self.online = torch.from_numpy(np.stack(rows))
+        self.target = torch.from_numpy(np.stack(target_rows))
+        self.adam = FlatAdam(self.online, cfg.lr, cfg.adam_eps)
+        self._online_views = net.bind(self.online)
+        self._target_views = net.bind(self.target)
+
+    @property
+    def num_agents(self) -> int:
+        """K, the number of agents trained together."""
+        return self.online.shape[0]
+
+    def q_values(self, obs: Tensor) -> Tensor:
+        """Online Q-values (K, N, actions) of observations (K, N, obs_dim)."""
+        return self.net.forward(self._online_views, obs)[0]
+
+    def greedy(self, obs: Tensor) -> np.ndarray:
+        """Greedy actions (K, N) of observations (K, N, obs_dim)."""
+        return self.q_values(obs).argmax(-1).numpy()
+
+    def update(self, obs_pairs: Tensor, actions: Tensor, rewards: Tensor, terminated: Tensor) -> Tensor:
+        """One double-DQN gradient step for every agent; return each agent's TD loss (K,).
+
+        ``obs_pairs`` is (K, 2B, obs_dim): the B observations, then their B next observations;
+        ``actions`` (K, B) int64, ``rewards`` and ``terminated`` (K, B) float32.
+        """
+        batch = actions.shape[1]
+        q, cache = self.net.forward(self._online_views, obs_pairs)
+        q_next_target = self.net.forward(self._target_views, obs_pairs[:, batch:])[0]
+        target = double_dqn_target(q[:, batch:], q_next_target, rewards, terminated, self.cfg.gamma)
+        index = actions.unsqueeze(-1)
+        td = q[:, :batch].gather(2, index).squeeze(-1) - target
+        grad_q = torch.zeros_like(q[:, :batch]).scatter_(2, index, td.unsqueeze(-1) * (2.0 / batch))
+        grad = self.net.backward(self._online_views, cache, grad_q)
+        clip_grad_norm_per_agent(grad, self.cfg.grad_clip)
+        self.adam.step(self.online, grad)
+        self.target.lerp_(self.online, self.cfg.tau)
+        return td.square().mean(1)
+
+    def state_dict(self) -> dict[str, Any]:
+        """Networks and optimiser state."""
+        return {"online": self.online.clone(), "target": self.target.clone(), "adam": self.adam.state_dict()}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a `state_dict` (in place, so the layer views stay valid)."""
+        self.online.copy_(state["online"])
+        self.target.copy_(state["target"])
+        self.adam.load_state_dict(state["adam"])

@@ -1,0 +1,43 @@
+"""The ``ecorl`` command line: one module per subcommand, one convention, one error path.
+
+Each subcommand module (`train.cli.train`, `run`, `report`, `measure`, `video`, `export`, `evaluate`, `demo`)
+defines ``add_parser(subparsers)``, which adds its parser and sets ``handler=handle``, and
+``handle(args, parser) -> exit status``. A user's mistake is raised as `train.cli.common.UserError`, which
+`main` prints as one line (``ecorl COMMAND: error: MESSAGE``, exit status 2). Heavy modules (torch, the
+trainer, the report) are imported inside the handlers, so ``ecorl --help`` stays quick.
+Add a subcommand by writing such a module and listing it in `COMMANDS`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from train.cli import demo, evaluate, export, measure, report, run, video
+from train.cli import train as train_command
+from train.cli.common import OneLineParser, UserError
+
+COMMANDS = (train_command, run, report, measure, video, export, evaluate, demo)
+"""The subcommand modules, in the order ``ecorl --help`` lists them."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``ecorl`` parser with every subcommand."""
+    parser = OneLineParser(prog="ecorl", description="Ecological reinforcement learning, reproduced.")
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser)
+    for command in COMMANDS:
+        command.add_parser(subparsers)
+    for sub in subparsers.choices.values():  # each handler gets its own subcommand's parser
+        sub.set_defaults(command_parser=sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``ecorl`` console script (and of ``python -m train.cli``)."""
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args, args.command_parser)
+    except UserError as err:
+        print(f"ecorl {args.command}: error: {err}", file=sys.stderr)
+        return 2

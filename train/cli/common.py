@@ -1,0 +1,54 @@
+"""What every ``ecorl`` subcommand shares: the one-line parser, the one error path, argument types.
+
+A subcommand reports a user's mistake (bad input, a run directory that does not fit) by raising `UserError`,
+or by running the code that may fail inside ``with user_errors(...)``; `train.cli.main` prints it as one line
+``ecorl COMMAND: error: MESSAGE`` and exits with status 2. Mistakes argparse finds itself (and a handler's
+``parser.error``) print the same line through `OneLineParser` and raise SystemExit(2).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+DEFAULT_OUT = Path("results")
+"""Where ``ecorl run`` and ``ecorl measure`` write unless told otherwise."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (``PROG: error: MESSAGE``, exit status 2), no usage."""
+
+    def error(self, message: str):
+        """Exit with ``message`` on one line (argparse calls this for bad input)."""
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
+
+
+class UserError(Exception):
+    """A mistake of the user, reported as one line (see the module docstring)."""
+
+
+@contextmanager
+def user_errors(*kinds: type[BaseException]) -> Iterator[None]:
+    """Inside the block, exceptions of ``kinds`` become `UserError` with their message on one line."""
+    try:
+        yield
+    except kinds as err:
+        raise UserError(" ".join(str(err).split())) from err
+
+
+def positive(text: str) -> int:
+    """An integer >= 1 (an argparse type)."""
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text}")
+    return value
+
+
+def probability(text: str) -> float:
+    """A number in [0, 1] (an argparse type)."""
+    value = float(text)
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text}")
+    return value

@@ -1,0 +1,101 @@
+"""``ecorl run EXPERIMENT``: run a named experiment of the paper (a resumable sweep)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from train.cli.common import DEFAULT_OUT, UserError, positive, user_errors
+from train.experiments.catalog import BUDGETS, EXPERIMENTS, get_experiment
+
+
+def add_parser(subparsers) -> argparse.ArgumentParser:
+    """``ecorl run EXPERIMENT [--task T ...] [--budget B] [--executor local|ray] ...``."""
+    listing = "\n".join(f"  {e.name:<24s}{e.paper}: {e.title}" for e in EXPERIMENTS.values())
+    parser = subparsers.add_parser(
+        "run", help="run a named experiment of the paper (resumable sweep)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Run every condition of a named experiment, one process per condition (its seeds trained "
+                    "together), locally or on Ray. Runs go to OUT/EXPERIMENT/TASK/CONDITION/. Re-running the "
+                    "same command skips finished runs and resumes interrupted ones.\n\nexperiments:\n" + listing)
+    parser.add_argument("experiment", nargs="?", metavar="EXPERIMENT", help="experiment name (see --list)")
+    parser.add_argument("--list", action="store_true", help="list the experiments and their budgets, then exit")
+    parser.add_argument("--task", nargs="+", metavar="T", help="only these tasks of the experiment")
+    parser.add_argument("--budget", choices=BUDGETS, default="quick",
+                        help="smoke (seconds, for tests), quick (minutes on a laptop, default) or paper")
+    parser.add_argument("--executor", choices=("local", "ray"), default="local",
+                        help="local processes (default) or Ray tasks")
+    parser.add_argument("--address", default=None,
+                        help="Ray cluster address (e.g. 'auto' or HOST:PORT; default: start a local Ray). "
+                             "Every node must see --out at the same path.")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"results directory (default: {DEFAULT_OUT})")
+    parser.add_argument("--jobs", type=positive, default=None,
+                        help="local processes running at once (default: the number of CPU cores)")
+    parser.add_argument("--seeds", type=positive, default=None, help="override the budget's seeds per condition")
+    parser.add_argument("--steps", type=positive, default=None, help="override the budget's steps per seed")
+    parser.add_argument("--dry-run", action="store_true", help="print the runs (and their state), run nothing")
+    parser.add_argument("--report", action="store_true", help="write the report of OUT/EXPERIMENT afterwards")
+    parser.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    parser.set_defaults(handler=handle)
+    return parser
+
+
+def _list_experiments() -> None:
+    from train.experiments.sweep import plan
+
+    for exp in EXPERIMENTS.values():
+        print(f"{exp.name} ({exp.paper}): {exp.title}")
+        print(f"    tasks: {', '.join(exp.tasks)}")
+        for name in BUDGETS:
+            b = exp.budget(name)
+            jobs = plan(exp, name, "/nonexistent")
+            steps = sorted({b.steps_for(t) for t in exp.tasks})
+            print(f"    {name:<6s} {len(jobs)} runs x {b.seeds} seeds x {'/'.join(f'{s:,}' for s in steps)} steps")
+
+
+def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    """Plan the experiment's runs and execute those not done yet."""
+    from train.experiments.sweep import plan, print_plan, run_jobs, summarize, write_experiment_file
+
+    if args.list:
+        _list_experiments()
+        return 0
+    if args.experiment is None:
+        parser.error("name an EXPERIMENT (or pass --list)")
+    try:
+        exp = get_experiment(args.experiment)
+        jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps)
+    except ValueError as err:
+        parser.error(str(err))
+    if args.out.exists() and not args.out.is_dir():
+        raise UserError(f"--out {args.out} is a file, not a directory; choose a directory path")
+    if args.dry_run:
+        print_plan(jobs)
+        return 0
+    write_experiment_file(exp, args.budget, jobs, args.out)
+    where = args.out / exp.name
+    print(f"ecorl run {exp.name} ({exp.paper}): {len(jobs)} runs, budget {args.budget}, executor {args.executor}, "
+          f"results in {where}", file=sys.stderr)
+    try:
+        with user_errors(RuntimeError):
+            results = run_jobs(jobs, args.executor, args.jobs, args.address, args.progress)
+    except KeyboardInterrupt:
+        print(f"interrupted: running conditions saved a checkpoint; re-run the same command to resume "
+              f"({where})", file=sys.stderr)
+        return 130
+    counts = summarize(results)
+    print("runs: " + ", ".join(f"{n} {status}" for status, n in sorted(counts.items())), file=sys.stderr)
+    if counts.get("failed") or counts.get("interrupted"):
+        print("some runs did not finish; re-run the same command to retry/resume them", file=sys.stderr)
+        return 1
+    if args.report:
+        from train.experiments.report import make_report
+
+        with user_errors(FileNotFoundError, ValueError):
+            paths = make_report(where)
+        for path in paths:
+            print(path)
+    else:
+        print(f"next: ecorl report {where}", file=sys.stderr)
+    return 0

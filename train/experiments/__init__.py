@@ -1,0 +1,1 @@
+"""The research pipeline on top of the trainer: the paper's experiments as data, sweeps, Table 1, reports."""

@@ -1,0 +1,166 @@
+"""Where a sweep's jobs run: local worker processes (one job each at a time) or Ray tasks.
+
+Both stop cleanly on Ctrl-C or SIGTERM: queued jobs do not start, running trainers stop at their epoch end with
+a checkpoint, and a worker whose sweep process died exits instead of taking another job.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from collections.abc import Callable, Sequence
+from contextlib import contextmanager
+
+from train.experiments.jobs import Job, JobResult, execute
+from train.fileio import die_with_parent
+
+_STOP = None
+"""In a local worker process: the sweep's stop event (set when the user interrupts the sweep)."""
+
+
+_PARENT: int | None = None
+"""In a local worker process: the pid of the sweep that started it."""
+
+
+def _init_worker(stop, parent: int) -> None:
+    """Worker initializer: Ctrl-C reaches the trainer's own handler (a clean stop), not the pool loop; the
+    worker gets SIGTERM (a clean stop too) when the sweep's process dies, and then takes no further job.
+    """
+    global _STOP, _PARENT
+    _STOP, _PARENT = stop, parent
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(signal.SIGTERM)
+    if _parent_gone():  # it died before the request took effect
+        os._exit(1)
+
+
+def _parent_gone() -> bool:
+    """True in a worker whose sweep process has died (the worker was re-parented)."""
+    return _PARENT is not None and os.getppid() != _PARENT
+
+
+_INTERRUPTED = False
+"""In a local worker process: a job of this worker was stopped by a signal, so it takes no further job."""
+
+
+def _execute_unless_stopped(job: Job) -> JobResult:
+    """`execute`, unless the sweep was interrupted before this job started; a worker whose sweep died
+    exits instead of taking (or reporting) a job.
+
+    A worker whose job a signal stopped takes no further job either: the kernel's parent-death signal can
+    arrive when the sweep's first thread dies, while its other threads (same pid) still live.
+    """
+    global _INTERRUPTED
+    if _parent_gone():
+        os._exit(0)
+    if _INTERRUPTED or (_STOP is not None and _STOP.is_set()):
+        return JobResult(job.name, "interrupted")
+    result = execute(job)
+    _INTERRUPTED = _INTERRUPTED or result.status == "interrupted"
+    if _parent_gone():
+        os._exit(0)
+    return result
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM to the sweep, handled like Ctrl-C."""
+
+
+@contextmanager
+def _sigterm_interrupts():
+    """Inside the block (main thread only), SIGTERM raises `_Terminated`."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise _Terminated()
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def run_local(jobs: Sequence[Job], workers: int, on_result: Callable[[JobResult], None]) -> list[JobResult]:
+    """Run ``jobs`` in up to ``workers`` local processes (one job per process at a time)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    results: list[JobResult] = []
+    if not jobs:
+        return results
+    ctx = multiprocessing.get_context("spawn")  # no forked torch/OpenMP state in the workers
+    stop = ctx.Event()
+    pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(jobs))), mp_context=ctx,
+                               initializer=_init_worker, initargs=(stop, os.getpid()))
+    try:
+        with _sigterm_interrupts():
+            _collect(pool, jobs, results, on_result)
+    except KeyboardInterrupt as err:
+        stop.set()  # queued jobs do not start; running trainers stop at their epoch end
+        if isinstance(err, _Terminated):  # Ctrl-C reached the workers too; SIGTERM only this process
+            for proc in list((pool._processes or {}).values()):
+                proc.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+    return results
+
+
+def _collect(pool, jobs: Sequence[Job], results: list[JobResult], on_result: Callable[[JobResult], None]) -> None:
+    """Submit ``jobs`` to ``pool`` and gather their results as they finish."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    pending = {pool.submit(_execute_unless_stopped, job): job for job in jobs}
+    while pending:
+        finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in finished:
+            job = pending.pop(fut)
+            try:
+                result = fut.result()
+            except Exception as err:  # a worker died (e.g. killed): report it, keep going
+                result = JobResult(job.name, "failed", error=f"worker process failed: {err!r}")
+            results.append(result)
+            on_result(result)
+
+
+def _import_ray():
+    """Import Ray, or explain how to get it."""
+    try:
+        import ray
+    except ImportError:
+        raise RuntimeError("the Ray executor needs Ray: pip install 'ecorl[ray]' (or pip install 'ray>=2.9'), "
+                           "or use --executor local") from None
+    return ray
+
+
+def run_ray(jobs: Sequence[Job], address: str | None, on_result: Callable[[JobResult], None]) -> list[JobResult]:
+    """Run ``jobs`` as Ray tasks (one CPU each) on the cluster at ``address`` (None: start a local one).
+
+    Every node must see the results directory at the same path (a shared file system), since each task
+    writes its run directory itself.
+    """
+    ray = _import_ray()
+    if not ray.is_initialized():
+        ray.init(address=address, log_to_driver=False, include_dashboard=False)
+    remote = ray.remote(num_cpus=1, max_retries=0)(execute)
+    pending = {remote.remote(job): job for job in jobs}
+    results: list[JobResult] = []
+    try:
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            job = pending.pop(ready[0])
+            try:
+                result = ray.get(ready[0])
+            except Exception as err:  # the task's worker died
+                result = JobResult(job.name, "failed", error=f"Ray task failed: {err!r}")
+            results.append(result)
+            on_result(result)
+    except KeyboardInterrupt:
+        for ref in pending:
+            ray.cancel(ref)
+        raise
+    return results

@@ -1,0 +1,162 @@
+"""Reading a results directory: experiment directories, their trusted description, each condition's evaluations."""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from train.experiments.catalog import BUDGETS, EXPERIMENTS
+from train.experiments.jobs import DONE_FILE
+from train.experiments.sweep import EXPERIMENT_FILE
+
+REFERENCE_DIR = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
+"""Shipped paper-budget runs (metrics only): a report draws an experiment's quick curves over them."""
+
+
+@dataclass
+class Run:
+    """The evaluations of one condition (all seeds) read from its run directory."""
+
+    task: str
+    condition: str
+    label: str
+    path: Path
+    metric: str
+    steps: np.ndarray
+    """(E,) environment steps of the evaluations."""
+    values: np.ndarray
+    """(E, S) metric per evaluation and seed."""
+    done: bool
+
+    @property
+    def seeds(self) -> int:
+        """Number of seeds."""
+        return self.values.shape[1]
+
+
+@dataclass
+class ExperimentResults:
+    """What one experiment directory holds."""
+
+    name: str
+    path: Path
+    info: dict[str, Any]
+    runs: list[Run] = field(default_factory=list)
+    measurements: list[dict[str, Any]] = field(default_factory=list)
+    """Table 1 rows: task, measure, condition, mean, std, seeds, censored."""
+
+    @property
+    def tasks(self) -> list[str]:
+        """Tasks with results, in the experiment's panel order."""
+        order = list(self.info.get("tasks", {}))
+        present = {r.task for r in self.runs} | {m["task"] for m in self.measurements}
+        return [t for t in order if t in present] + sorted(present - set(order))
+
+
+def task_metric(task: str) -> str:
+    """'success' or 'return' (the food collector's metric)."""
+    from train.tasks import TASKS
+
+    return TASKS[task].metric if task in TASKS else "success"
+
+
+def read_metrics(path: Path, metric: str) -> tuple[np.ndarray, np.ndarray]:
+    """(steps (E,), values (E, S)) of a metrics.csv; evaluations missing a seed are dropped."""
+    by_step: dict[int, dict[int, float]] = {}
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            by_step.setdefault(int(row["step"]), {})[int(row["seed"])] = float(row[metric])
+    if not by_step:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 0))
+    seeds = sorted(set().union(*by_step.values()))
+    steps = sorted(s for s, vals in by_step.items() if len(vals) == len(seeds))
+    values = np.array([[by_step[s][k] for k in seeds] for s in steps], dtype=np.float64).reshape(len(steps), -1)
+    return np.array(steps, dtype=np.int64), values
+
+
+def find_experiment_dirs(root: Path) -> list[Path]:
+    """``root`` if it is an experiment directory, else the experiment directories right below it."""
+    if (root / EXPERIMENT_FILE).exists():
+        return [root]
+    order = list(EXPERIMENTS)
+    found = [p.parent for p in root.glob(f"*/{EXPERIMENT_FILE}")]
+    return sorted(found, key=lambda p: (order.index(p.name) if p.name in order else len(order), p.name))
+
+
+class ReportError(ValueError):
+    """A results directory the report refuses to read (the message says why)."""
+
+
+def trusted_info(path: Path) -> dict[str, Any]:
+    """experiment.json of ``path``, checked against the known experiments: its name, tasks and conditions
+    must be ones `train.experiments.catalog` defines (so no name can lead outside the results folder), and every
+    text shown comes from the known experiment, not from the file.
+    """
+    try:
+        saved = json.loads((path / EXPERIMENT_FILE).read_text())
+    except ValueError as err:
+        raise ReportError(f"{path / EXPERIMENT_FILE} is not valid JSON ({err})") from None
+    name = saved.get("name") if isinstance(saved, dict) else None
+    if not isinstance(name, str) or name not in EXPERIMENTS:
+        raise ReportError(f"{path / EXPERIMENT_FILE} names an unknown experiment {name!r}; the report reads only "
+                          f"experiments written by ecorl run ({', '.join(EXPERIMENTS)})")
+    known = EXPERIMENTS[name]
+    tasks = saved.get("tasks", {})
+    if not isinstance(tasks, dict):
+        raise ReportError(f"{path / EXPERIMENT_FILE}: 'tasks' is not an object")
+    for task, conds in tasks.items():
+        allowed = {c.name for c in known.conditions.get(task, ())}
+        names = [c.get("name") if isinstance(c, dict) else c for c in conds] if isinstance(conds, list) else [conds]
+        bad = [n for n in names if n not in allowed]
+        if task not in known.conditions or bad:
+            what = f"task {task!r}" if task not in known.conditions else f"condition(s) {bad!r} of {task}"
+            raise ReportError(f"{path / EXPERIMENT_FILE} names {what}, which experiment {name!r} does not have")
+    info = known.describe()
+    info["tasks"] = {t: c for t, c in info["tasks"].items() if t in tasks}
+    budget = saved.get("budget")
+    info["budget"] = budget if budget in BUDGETS else "?"
+    return info
+
+
+def load_experiment(path: Path) -> ExperimentResults:
+    """Read the runs (or measurements) of one experiment directory."""
+    info = trusted_info(path)
+    result = ExperimentResults(info["name"], path, info)
+    for task, conds in info.get("tasks", {}).items():
+        for cond in conds:
+            run_dir = path / task / cond["name"]
+            if cond.get("measure"):
+                table = run_dir / "table.csv"
+                if table.exists():
+                    with open(table, newline="") as f:
+                        for row in csv.DictReader(f):
+                            result.measurements.append({
+                                "task": task, "measure": cond["measure"], "condition": row["condition"],
+                                "mean": float(row["mean"]), "std": float(row["std"]), "seeds": int(row["seeds"]),
+                                "censored": int(row["censored"])})
+                continue
+            metrics = run_dir / "metrics.csv"
+            if not metrics.exists():
+                continue
+            metric = task_metric(task)
+            steps, values = read_metrics(metrics, metric)
+            if len(steps):
+                result.runs.append(Run(task, cond["name"], cond["label"], run_dir, metric, steps, values,
+                                       (run_dir / DONE_FILE).exists()))
+    return result
+
+
+def load_reference(exp: ExperimentResults, reference_dir: Path | None = None) -> ExperimentResults | None:
+    """The shipped paper-budget runs of ``exp``'s experiment (under `REFERENCE_DIR` unless given), or None
+    (none shipped, or ``exp`` is them).
+    """
+    path = (reference_dir or REFERENCE_DIR) / exp.name
+    if not (path / EXPERIMENT_FILE).exists() or path.resolve() == exp.path.resolve():
+        return None
+    reference = load_experiment(path)
+    return reference if reference.runs else None

@@ -1,0 +1,174 @@
+"""Running an experiment: plan its jobs, run them in local processes or on Ray, resume, skip what is done.
+
+Layout of a results directory::
+
+    OUT/<experiment>/experiment.json          what was run (conditions, budget), read by the report
+    OUT/<experiment>/<task>/<condition>/      one trainer run directory (train.rundir), all seeds
+        done.json                             written atomically when the run has reached its budget
+    OUT/measure/<task>/<measurement>/         table.csv, table.md, done.json (Table 1, no training)
+
+A job is one condition of one task with all its seeds, trained in one process (`train.experiments.jobs`;
+the processes are `train.experiments.executors`). Re-running the
+same command skips jobs whose ``done.json`` covers the requested steps, resumes jobs that left a checkpoint,
+and starts the others afresh, so an interrupted sweep (even by SIGKILL) finishes with no run lost or
+repeated: the trainer's checkpoints are atomic and a resumed run continues exactly where the checkpoint
+stood.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+from train.checkpoint import CHECKPOINT_NAME
+from train.config import TrainConfig
+from train.experiments.catalog import Experiment, job_config
+from train.experiments.executors import run_local, run_ray
+from train.experiments.jobs import Job, JobResult, job_is_done
+from train.fileio import atomic_text
+
+EXPERIMENT_FILE = "experiment.json"
+"""Description of an experiment directory, written by `run_experiment`."""
+
+
+EXPERIMENT_LOCK = ".experiment.lock"
+"""Lock file serialising updates of experiment.json by concurrent ``ecorl run`` processes."""
+
+
+def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Sequence[str] | None = None,
+         seeds: int | None = None, steps: int | None = None) -> list[Job]:
+    """The jobs of ``experiment`` at a budget (optionally a task subset, or other seeds/steps)."""
+    budget = experiment.budget(budget_name)
+    if seeds is not None or steps is not None:
+        budget = replace(budget, seeds=seeds or budget.seeds, steps=steps or budget.steps)
+    root = Path(out).resolve() / experiment.name
+    jobs = []
+    for task in experiment.select_tasks(tasks):
+        for cond in experiment.conditions[task]:
+            run_dir = str(root / task / cond.name)
+            n_steps = budget.steps_for(task)
+            if cond.measure:
+                config = {"measure": cond.measure, "task": task, "seeds": budget.seeds, "steps": n_steps}
+                jobs.append(Job(experiment.name, task, cond.name, run_dir, config, budget.seeds * n_steps / 20))
+            else:
+                cfg = job_config(experiment, task, cond, budget)
+                jobs.append(Job(experiment.name, task, cond.name, run_dir, cfg.to_dict(),
+                                cfg.run.seeds * cfg.total_steps * (10 if task == "foodcollector" else 1)))
+    return jobs
+
+
+def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequence[Job], out: str | Path) -> Path:
+    """Record what this experiment directory holds, merged (under a lock) with earlier or concurrent runs of
+    other task subsets.
+    """
+    from train.fileio import FileLock, LockedError
+
+    path = Path(out).resolve() / experiment.name / EXPERIMENT_FILE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(path.parent / EXPERIMENT_LOCK, f"{path}", "try again in a moment")
+    deadline = time.monotonic() + 30.0
+    while True:  # writers hold this lock for milliseconds: wait for it
+        try:
+            lock.acquire()
+            break
+        except LockedError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.05)
+    try:
+        old = _read_json(path)
+        info = experiment.describe()
+        info["budget"] = budget_name
+        info["tasks_run"] = sorted((set(old.get("tasks_run", [])) & set(experiment.tasks)) | {j.task for j in jobs},
+                                   key=lambda t: list(experiment.tasks).index(t))
+        atomic_text(path, json.dumps(info, indent=2) + "\n")
+    finally:
+        lock.release()
+    return path
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    """A JSON object from ``path`` ({} if missing or unreadable)."""
+    try:
+        data = json.loads(path.read_text())
+    except (FileNotFoundError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None = None,
+             address: str | None = None, progress: bool = True) -> list[JobResult]:
+    """Run every job not yet done (longest first), with a progress bar over conditions."""
+    from tqdm import tqdm
+
+    done_before = [j for j in jobs if _safe_is_done(j)]
+    todo = sorted((j for j in jobs if j not in done_before), key=lambda j: -j.cost)
+    bar = tqdm(total=len(jobs), initial=len(done_before), unit="run", desc="conditions", disable=not progress,
+               dynamic_ncols=True)
+    results = [JobResult(j.name, "skipped") for j in done_before]
+
+    def on_result(result: JobResult) -> None:
+        bar.update(1)
+        if result.status == "failed":
+            bar.write(f"FAILED {result.job}: {result.error}", file=sys.stderr)
+        elif result.status == "done":
+            bar.write(f"finished {result.job} in {result.seconds:.0f} s", file=sys.stderr)
+
+    if executor not in ("local", "ray"):
+        bar.close()
+        raise ValueError(f"unknown executor {executor!r}; choose local or ray")
+    try:
+        if not todo:
+            pass
+        elif executor == "local":
+            results += run_local(todo, workers or os.cpu_count() or 1, on_result)
+        else:
+            results += run_ray(todo, address, on_result)
+    finally:
+        bar.close()
+    return results
+
+
+def _safe_is_done(job: Job) -> bool:
+    """`job_is_done`, letting a settings mismatch surface when the job runs (as a failure with its message)."""
+    try:
+        return job_is_done(job)
+    except Exception:
+        return False
+
+
+def summarize(results: Iterable[JobResult]) -> dict[str, int]:
+    """Count results by status."""
+    counts: dict[str, int] = {}
+    for r in results:
+        counts[r.status] = counts.get(r.status, 0) + 1
+    return counts
+
+
+def print_plan(jobs: Sequence[Job], file=None) -> None:
+    """One line per job: its directory, seeds, steps and whether it is done."""
+    file = file or sys.stdout
+    for job in jobs:
+        cfg = job.config
+        if job.is_measurement:
+            what = f"{cfg['measure']}: {cfg['seeds']} seeds x {cfg['steps']} steps"
+        else:
+            c = TrainConfig.from_dict(cfg)
+            what = (f"{c.run.seeds} seeds x {c.total_steps} steps, eval every {c.eval.eval_every}, "
+                    f"p={c.env.dynamism:g}, shaping={c.env.shaping}, "
+                    f"{'reset-free' if c.env.reset_free else 'episodic'}, "
+                    f"reward={c.env.reward}{', rnd' if c.rnd.rnd else ''}")
+        state = "done" if _safe_is_done(job) else ("resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists()
+                                                    else "new")
+        print(f"[{state:>6s}] {job.name}: {what}", file=file)
+
+
+def job_to_dict(job: Job) -> dict[str, Any]:
+    """A JSON-friendly job."""
+    return asdict(job)

@@ -1,0 +1,138 @@
+"""Rollout videos: a trained policy (or a uniform random one) in a task's test MDP or training env.
+
+The policy is one seed's network from a run directory, its ``checkpoint.npz``, or a policy file
+(`train.policy`); it acts epsilon-greedily (epsilon 0.05 by default).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from train.fileio import atomic_path
+from train.policy import Policy, load_policy
+
+VIDEO_EPSILON = 0.05
+"""Exploration of the filmed policy (a little noise keeps a greedy agent from freezing in a loop)."""
+
+VIDEO_EPISODES = 3
+"""Episodes filmed by default: one episode shows a single layout, a few show what the policy usually does."""
+
+
+def env_kwargs_for(task: str, policy: Policy | None, train_env: bool) -> dict[str, Any]:
+    """Keyword arguments of the filmed environment: the test MDP, or the training env with ``train_env``."""
+    from train.config import EnvConfig
+    from train.tasks import get_task, probe
+
+    if policy is not None:
+        return dict(policy.cfg.env.env_make_kwargs) if train_env else policy.test_kwargs
+    env_cfg = EnvConfig(task=task)
+    return dict(env_cfg.env_make_kwargs) if train_env else dict(probe(get_task(task), env_cfg).test_kwargs)
+
+
+@dataclass(frozen=True)
+class Film:
+    """A filmed rollout: its frames and how its episodes went."""
+
+    frames: list[np.ndarray]
+    """Rendered frames, the first reset included."""
+    episodes: int
+    """Episodes started in the film (the last may be cut off)."""
+    solved: int
+    """Episodes in which the task was solved (``info["solved"]``)."""
+    total_return: float
+    """Sum of the rewards over the film."""
+
+
+def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | None = None,
+                 episodes: int = 1) -> Film:
+    """Film ``act`` in ``env`` from a reset with ``seed``: exactly ``steps`` steps (a new episode after each
+    end) or, without ``steps``, ``episodes`` whole episodes. The first frame is included.
+    """
+    obs, _ = env.reset(seed=seed)
+    frames, started, solved, solved_now, taken, total = [env.render()], 1, 0, False, 0, 0.0
+    while steps is None or taken < steps:
+        obs, reward, terminated, truncated, info = env.step(act(obs))
+        frames.append(env.render())
+        taken += 1
+        total += float(reward)
+        solved_now |= bool(info.get("solved", False))
+        if terminated or truncated:
+            solved, solved_now = solved + solved_now, False
+            if (steps is None and started == episodes) or taken == steps:
+                break
+            obs, _ = env.reset()
+            frames.append(env.render())
+            started += 1
+    return Film(frames, started, solved + solved_now, total)
+
+
+@dataclass(frozen=True)
+class Video:
+    """A written video file and the rollout it shows."""
+
+    path: Path
+    """The MP4."""
+    episodes: int
+    """Episodes started in it."""
+    solved: int
+    """Episodes solved in it."""
+    total_return: float
+    """Sum of the rewards over the film."""
+    metric: str
+    """The task's evaluation metric, 'success' or 'return' (`train.tasks.Task.metric`)."""
+
+    def summary(self) -> str:
+        """One line on how the filmed episodes went, in the task's metric."""
+        if self.metric == "return":
+            return f"mean return {self.total_return / self.episodes:.1f} over the {self.episodes} episode(s) filmed"
+        return f"solved {self.solved} of the {self.episodes} episode(s) filmed"
+
+
+def record_video(task: str | None, out: str | Path, policy_path: str | Path | None = None, steps: int | None = None,
+                 seed: int = 0, seed_index: int = 0, train_env: bool = False, epsilon: float = VIDEO_EPSILON,
+                 episodes: int = VIDEO_EPISODES) -> Video:
+    """Write an MP4 of one rollout; return its path and how many episodes it shows solved.
+
+    ``policy_path`` (a run directory, checkpoint or policy file) selects the trained policy (of seed number
+    ``seed_index`` of a run); without it a uniform random policy acts. The film is ``steps`` steps long, or
+    without ``steps`` ``episodes`` whole episodes (each at most the horizon; a reset-free env has one
+    episode, so its film is one horizon long). ``seed`` seeds the first layout and the exploration draws.
+    """
+    import gymnasium as gym
+
+    from ecology import write_video
+    from train.tasks import get_task
+
+    policy = load_policy(policy_path, seed_index) if policy_path is not None else None
+    if policy is not None:
+        if task is not None and task != policy.task:
+            raise ValueError(f"the policy at {policy_path} was trained on {policy.task!r}, not {task!r}")
+        task = policy.task
+    if task is None:
+        raise ValueError("name a task or give a policy")
+    kwargs = env_kwargs_for(task, policy, train_env)
+    env = gym.make(get_task(task).env_id, render_mode="rgb_array", **kwargs)
+    rng = np.random.default_rng(seed)
+    n_actions = int(env.action_space.n)
+
+    def act(obs: np.ndarray) -> int:
+        if policy is None or rng.random() < epsilon:
+            return int(rng.integers(n_actions))
+        return policy.act(obs)
+
+    if steps is None and kwargs.get("reset_free"):
+        steps = int(kwargs.get("horizon", 200))
+    try:
+        film = film_rollout(env, act, seed, steps, episodes)
+        fps = env.metadata.get("render_fps", 8)
+    finally:
+        env.close()
+    with atomic_path(out) as tmp:
+        write_video(film.frames, tmp, fps=fps)
+    return Video(Path(out), film.episodes, film.solved, film.total_return,
+                 get_task(task).metric)
