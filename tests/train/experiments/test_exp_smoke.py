@@ -58,13 +58,15 @@ def test_report_writes_figures_tables_and_page(report, smoke_tasks):
     assert str(root / "report.md") in stdout
 
 
-def test_headline_report_has_videos_playable_in_browsers(report):
+def test_headline_reports_have_videos_playable_in_browsers(report):
+    """Both headline experiments film each condition (4 each); no other experiment in the smoke run does."""
     root, _ = report
-    for cond in EXPERIMENTS["headline"].conditions["salad"]:
-        assert (root / "headline" / "salad" / cond.name / "video.mp4").stat().st_size > 1000
+    for name in ("headline", "headline-waypoint"):
+        for cond in EXPERIMENTS[name].conditions["salad"]:
+            assert (root / name / "salad" / cond.name / "video.mp4").stat().st_size > 1000
     page = (root / "index.html").read_text()
-    assert page.count("<video") == 4 and page.count("video/webm") == 4
-    assert len(list((root / "figures" / "videos").glob("*.webm"))) == 4
+    assert page.count("<video") == 8 and page.count("video/webm") == 8
+    assert len(list((root / "figures" / "videos").glob("*.webm"))) == 8
     assert not (root / "walls" / "walled-salad" / "no-shaping-episodic" / "video.mp4").exists()
 
 
