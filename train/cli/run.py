@@ -22,6 +22,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("experiment", nargs="?", metavar="EXPERIMENT", help="experiment name (see --list)")
     parser.add_argument("--list", action="store_true", help="list the experiments and their budgets, then exit")
     parser.add_argument("--task", nargs="+", metavar="T", help="only these tasks of the experiment")
+    parser.add_argument("--condition", nargs="+", metavar="C",
+                        help="only these conditions (e.g. to give each machine its own; see --dry-run for names)")
     parser.add_argument("--budget", choices=BUDGETS, default="quick",
                         help="smoke (seconds, for tests), quick (minutes on a laptop, default) or paper")
     parser.add_argument("--executor", choices=("local", "ray"), default="local",
@@ -65,7 +67,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         parser.error("name an EXPERIMENT (or pass --list)")
     try:
         exp = get_experiment(args.experiment)
-        jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps)
+        jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition)
     except ValueError as err:
         parser.error(str(err))
     if args.out.exists() and not args.out.is_dir():

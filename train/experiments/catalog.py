@@ -45,7 +45,7 @@ Choices the paper leaves open, and where the values come from:
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -174,6 +174,17 @@ class Experiment:
             raise ValueError(f"experiment {self.name!r} has no task(s) {', '.join(unknown)}; "
                              f"its tasks are: {', '.join(self.tasks)}")
         return tuple(t for t in self.tasks if t in tasks)
+
+    def select_conditions(self, task: str, names: Sequence[str] | None) -> list[Condition]:
+        """The task's conditions named in ``names`` (all when None), validated, in panel order."""
+        if not names:
+            return list(self.conditions[task])
+        known = [c.name for c in self.conditions[task]]
+        unknown = [n for n in names if n not in known]
+        if unknown:
+            raise ValueError(f"experiment {self.name!r} has no condition(s) {', '.join(unknown)} for task "
+                             f"{task!r}; its conditions are: {', '.join(known)}")
+        return [c for c in self.conditions[task] if c.name in names]
 
     def describe(self) -> dict[str, Any]:
         """A JSON-friendly summary (written next to the runs, read back by the report)."""

@@ -42,15 +42,15 @@ EXPERIMENT_LOCK = ".experiment.lock"
 
 
 def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Sequence[str] | None = None,
-         seeds: int | None = None, steps: int | None = None) -> list[Job]:
-    """The jobs of ``experiment`` at a budget (optionally a task subset, or other seeds/steps)."""
+         seeds: int | None = None, steps: int | None = None, conditions: Sequence[str] | None = None) -> list[Job]:
+    """The jobs of ``experiment`` at a budget (optionally a task or condition subset, or other seeds/steps)."""
     budget = experiment.budget(budget_name)
     if seeds is not None or steps is not None:
         budget = replace(budget, seeds=seeds or budget.seeds, steps=steps or budget.steps)
     root = Path(out).resolve() / experiment.name
     jobs = []
     for task in experiment.select_tasks(tasks):
-        for cond in experiment.conditions[task]:
+        for cond in experiment.select_conditions(task, conditions):
             run_dir = str(root / task / cond.name)
             n_steps = budget.steps_for(task)
             if cond.measure:

@@ -123,3 +123,14 @@ def test_film_counts_whole_episodes_and_solved_ones():
     assert len(film.frames) == 1 + 3 * 3 + 2  # first reset, 9 steps, two resets between episodes
     film = film_rollout(_CountingEnv(3), lambda obs: 1, seed=0, steps=4)
     assert (film.episodes, film.solved, len(film.frames)) == (2, 1, 1 + 4 + 1)
+
+
+def test_run_condition_subset(capsys, tmp_path):
+    assert cli.main(["run", "headline", "--budget", "paper", "--dry-run", "--out", str(tmp_path),
+                     "--condition", "dynamic-reset-free", "static-episodic"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split()[2].rstrip(":") for line in out] == [
+        "headline/salad/static-episodic", "headline/salad/dynamic-reset-free"]  # panel order, not argument order
+    with pytest.raises(SystemExit):
+        cli.main(["run", "headline", "--condition", "dynamic", "--dry-run", "--out", str(tmp_path)])
+    assert "its conditions are: static-episodic" in capsys.readouterr().err
