@@ -302,9 +302,9 @@ def _salad_experiments() -> list[Experiment]:
     return [
         Experiment(
             "headline", "Fig. 4 (salad panel)", "Salad: dynamism and resets",
-            "Salad-making trained static or dynamic (p = 0.1), episodic or non-episodic; the README's "
-            "ten-minute experiment (3 seeds x 120 000 steps at the quick budget). The paper reports that static "
-            "non-episodic training fails and dynamism helps; 120 000 steps is far too short to show it.",
+            "Salad-making trained static or dynamic (p = 0.1), episodic or non-episodic, with the paper text's "
+            "sparse reward. The paper reports that static non-episodic training fails and dynamism helps; the "
+            "quick budget (3 seeds x 120 000 steps) is far too short to show it.",
             {"salad": salad_dyn}, {"salad": 1_000_000}, 10,
             {"smoke": SMOKE, "quick": _quick(3, 120_000)}, heatmaps=True, videos=True),
         Experiment(
