@@ -13,6 +13,7 @@ import dataclasses
 import functools
 import inspect
 import math
+import re
 import textwrap
 from dataclasses import dataclass, field
 from typing import Any
@@ -232,6 +233,8 @@ class RunConfig:
     """Also log the metrics to TensorBoard (in RUN_DIR/tensorboard)."""
     progress: bool = field(default=True, metadata=RUNTIME)
     """Show a progress bar."""
+    device: str = field(default="cpu", metadata=RUNTIME)
+    """Where the networks, the optimiser and the updates run: cpu, cuda or cuda:N (worlds stay on the CPU)."""
 
     def __post_init__(self) -> None:
         check_int("seeds", self.seeds)
@@ -239,6 +242,8 @@ class RunConfig:
         check_int("steps", self.steps)
         check_int("checkpoint_every", self.checkpoint_every)
         check_int("threads", self.threads)
+        if not isinstance(self.device, str) or not re.fullmatch(r"cpu|cuda(:[0-9]+)?", self.device):
+            raise ValueError(f"device must be cpu, cuda or cuda:N, got {self.device!r}")
         if self.first_seed + self.seeds > VALIDATION_SEED_BASE:
             raise ValueError(f"training seeds must stay below {VALIDATION_SEED_BASE} (the validation seeds)")
 

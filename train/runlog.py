@@ -8,18 +8,15 @@ import math
 import signal
 import threading
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from train.config import TrainConfig
 from train.rundir import RunDir
 
-if TYPE_CHECKING:
-    from train.trainer import Trainer
 
-
-def postfix(rows: list[dict[str, Any]], num_agents: int, cfg: TrainConfig) -> dict[str, str]:
+def postfix(rows: list[dict[str, Any]], num_agents: int) -> dict[str, str]:
     """Progress-bar summary of the latest evaluation: aggregate steps/s and mean metric over seeds."""
     out = {"sps": f"{rows[0]['steps_per_s'] * num_agents:.0f}"}
     success = [r["success"] for r in rows]
@@ -31,12 +28,13 @@ def postfix(rows: list[dict[str, Any]], num_agents: int, cfg: TrainConfig) -> di
 
 
 @contextmanager
-def progress_bar(cfg: TrainConfig, initial: int):
+def progress_bar(cfg: TrainConfig, initial: int, conditions: int = 1):
     """A tqdm bar over environment steps per seed (a silent stand-in when disabled)."""
     from tqdm import tqdm
 
+    what = f"{cfg.env.task} x{cfg.run.seeds}" if conditions == 1 else f"{cfg.env.task}: {conditions} conditions"
     bar = tqdm(total=cfg.total_steps, initial=initial, unit="step", disable=not cfg.run.progress,
-               desc=f"{cfg.env.task} x{cfg.run.seeds}", dynamic_ncols=True)
+               desc=what, dynamic_ncols=True)
     try:
         yield bar
     finally:
@@ -77,18 +75,19 @@ class RunLogger:
             purge = None if resumed_at is None else resumed_at + 1
             self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"), purge_step=purge)
 
-    def log(self, trainer: Trainer, rows: list[dict[str, Any]]) -> None:
-        """Persist the latest evaluation."""
-        self.run_dir.write_metrics(trainer.rows)
-        self.run_dir.save_visits(trainer.visits, trainer.step)
+    def log(self, metric_rows: list[dict[str, Any]], visits: np.ndarray, step: int) -> None:
+        """Persist the run's metrics after an evaluation (the rows of step ``step`` are its last ones)."""
+        self.run_dir.write_metrics(metric_rows)
+        self.run_dir.save_visits(visits, step)
         if self.writer is None:
             return
+        rows = [r for r in metric_rows if r["step"] == step]
         for key in ("success", "return", "loss", "epsilon", "train_reward", "steps_per_s"):
             values = [r[key] for r in rows]
             if not any(math.isnan(v) for v in values):
-                self.writer.add_scalar(f"{key}/mean", float(np.mean(values)), trainer.step)
+                self.writer.add_scalar(f"{key}/mean", float(np.mean(values)), step)
                 for r in rows:
-                    self.writer.add_scalar(f"{key}/seed_{r['seed']}", r[key], trainer.step)
+                    self.writer.add_scalar(f"{key}/seed_{r['seed']}", r[key], step)
 
     def close(self) -> None:
         """Flush TensorBoard."""

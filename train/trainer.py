@@ -1,39 +1,41 @@
-"""The training loop: K seeds of one condition, one vector environment, one replay buffer, one process.
+"""The training loop: the seeds of one condition, or of several conditions of one task packed together.
 
-Seed k owns world k of the vector environment (reset once with seed k), row k of every network buffer and
-four random streams of its own (network init, exploration, replay sampling, RND init), so its run does not
-depend on which other seeds train beside it. The schedule is the original code's: ``warmup_steps`` steps,
-then epochs of ``epoch_steps`` environment steps followed by ``updates_per_epoch`` gradient steps;
-evaluation every ``eval_every`` steps. Episodic worlds restart through Gymnasium's next-step autoreset:
-the step after an episode's end only resets the world (its action is ignored, nothing is stored), and it
-counts toward the step budget like any other.
+A trainer drives one `Learner` (`train.agent.learner`) over K agent rows. Each condition (a `Part`) owns a
+contiguous block of rows, its own vector environment (world k of it reset once with seed k), its run
+directory, metrics and visitation counts; the learner owns everything about learning. Packing several
+conditions of a task into one trainer (`Trainer.packed`) batches their gradient steps into one call, while
+every condition keeps the run directory, and the numbers up to float rounding, that it gets alone.
+
+The schedule is the learner's (for double DQN: ``warmup_steps`` steps, then epochs of ``epoch_steps`` steps
+each followed by its updates); evaluation every ``eval_every`` steps. Episodic worlds restart through
+Gymnasium's next-step autoreset: the step after an episode's end only resets the world (its action is
+ignored, nothing is stored), and it counts toward the step budget like any other.
 """
 
 from __future__ import annotations
 
 import math
-import os
 import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from train.agent.dqn import DoubleDQN
-from train.agent.network import QNetwork
-from train.agent.replay import Replay
-from train.agent.rnd import RND
+from train.agent.learner import STREAMS, DQNLearner, Learner, RowSettings, seed_streams
 from train.config import TrainConfig
 from train.evaluate import Evaluator, evaluation_kwargs
+from train.packing import check_device, check_packable, check_replay_memory
 from train.rundir import RunDir, RunDirError
 from train.runlog import RunLogger, postfix, progress_bar, stop_on_signal
 from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state
 
-STREAMS = ("init", "explore", "sample", "rnd")
-"""The random streams of each seed, spawned from its SeedSequence in this order."""
+__all__ = ["CHECKPOINT_VERSION", "STREAMS", "Part", "Trainer", "check_replay_memory", "resolve", "seed_streams"]
+
 CHECKPOINT_VERSION = 2
-"""Version of `Trainer.state_dict` (the layout inside the checkpoint file, `train.checkpoint`)."""
+"""Version of a run's checkpoint state (the layout inside the checkpoint file, `train.checkpoint`)."""
 
 
 def resolve(cfg: TrainConfig, task: Task, info: EnvInfo) -> TrainConfig:
@@ -42,66 +44,138 @@ def resolve(cfg: TrainConfig, task: Task, info: EnvInfo) -> TrainConfig:
                        eval_horizon=cfg.eval.eval_horizon or int(info.test_kwargs["horizon"]))
 
 
-def seed_streams(seed: int) -> dict[str, np.random.Generator]:
-    """The independent random generators of one seed."""
-    return {name: np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
-            for i, name in enumerate(STREAMS)}
+@dataclass
+class Part:
+    """One condition inside a trainer: its rows of the learner, its worlds and what it writes."""
+
+    cfg: TrainConfig
+    rows: slice
+    env: Any
+    run_dir: RunDir | None
+    visits: np.ndarray
+    metric_rows: list[dict[str, Any]] = field(default_factory=list)
+    resumed_from: int = -1
+    """The step a resumed run continued from (-1: a fresh run)."""
+
+    @property
+    def seeds(self) -> list[int]:
+        """The seeds of this condition."""
+        return self.cfg.run.seed_list
 
 
 class Trainer:
-    """Trains every seed of one condition together; optionally keeps a run directory."""
+    """Trains every seed of one condition (or, built by `packed`, of several) together."""
 
     def __init__(self, cfg: TrainConfig, run_dir: str | Path | RunDir | None = None, resume: bool = False) -> None:
-        self.task = get_task(cfg.env.task)
-        self.info = probe(self.task, cfg.env)
-        self.cfg = cfg = resolve(cfg, self.task, self.info)
-        torch.set_num_threads(cfg.run.threads)
+        self._build([cfg], [run_dir], [resume])
+
+    @classmethod
+    def packed(cls, cfgs: Sequence[TrainConfig], run_dirs: Sequence[str | Path | RunDir | None],
+               resume: Sequence[bool]) -> Trainer:
+        """One trainer for several conditions of one task (`train.packing.check_packable` says which pack)."""
+        trainer = cls.__new__(cls)
+        trainer._build(list(cfgs), list(run_dirs), list(resume))
+        return trainer
+
+    def _build(self, cfgs: list[TrainConfig], run_dirs: list, resume: list[bool]) -> None:
+        self.task = get_task(cfgs[0].env.task)
+        self.info = probe(self.task, cfgs[0].env)
+        cfgs = [resolve(c, self.task, self.info) for c in cfgs]
+        check_packable(cfgs)
+        run = cfgs[0].run
+        check_device(run.device)
+        torch.set_num_threads(run.threads)
         # Adam's second moments of inputs that are never active decay through the denormal range, where
         # CPU arithmetic is ~100x slower; flushing only changes values below ~1e-38 (to zero).
         torch.set_flush_denormal(True)
-        self.seeds = cfg.run.seed_list
-        streams = [seed_streams(s) for s in self.seeds]
-        self.rngs = {name: [s[name] for s in streams] for name in STREAMS}
-        net = QNetwork(self.info.view_dim, self.info.obs_dim - self.info.view_dim, self.info.num_actions,
-                       cfg.dqn.view_layers, cfg.dqn.inventory_layers, cfg.dqn.head_layers)
-        check_replay_memory(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
-                            cfg.dqn.float_obs_dtype)
-        self.agent = DoubleDQN(net, cfg.dqn, self.rngs["init"])
-        self.rnd = RND(self.info.obs_dim, cfg.rnd, self.rngs["rnd"]) if cfg.rnd.rnd else None
-        self.replay = Replay(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
-                             cfg.dqn.float_obs_dtype)
-        self.env = make_vector_env(self.task.env_id, self.num_agents, cfg.env.env_make_kwargs)
+        settings = [RowSettings(s, c.dqn, c.rnd) for c in cfgs for s in c.run.seed_list]
+        check_replay_memory(len(settings), cfgs[0].dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
+                            cfgs[0].dqn.float_obs_dtype)
+        self.learner: Learner = DQNLearner(settings, self.info.obs_dim, self.info.view_dim, self.info.num_actions,
+                                           self.task.binary_obs, run.device)
+        self.parts: list[Part] = []
+        start = 0
+        for cfg, run_dir in zip(cfgs, run_dirs):
+            rows = slice(start, start + cfg.run.seeds)
+            start = rows.stop
+            env = make_vector_env(self.task.env_id, cfg.run.seeds, cfg.env.env_make_kwargs)
+            run_dir = RunDir(run_dir) if isinstance(run_dir, (str, Path)) else run_dir
+            self.parts.append(Part(cfg, rows, env, run_dir, np.zeros((cfg.run.seeds, *self.info.visit_shape),
+                                                                     dtype=np.int64)))
+        self.seeds = [s for p in self.parts for s in p.seeds]
         self._evaluator: Evaluator | None = None
-        self.run_dir = RunDir(run_dir) if isinstance(run_dir, (str, Path)) else run_dir
         self._fresh_state()
-        self.resumed_from = -1
-        """The step a resumed run continued from (-1: a fresh run)."""
-        if self.run_dir is not None:
-            self._open_run_dir(resume)
+        self._open_run_dirs(resume)
 
-    def _open_run_dir(self, resume: bool) -> None:
-        """Lock the run directory; on resume restore the checkpoint and rewrite config.json (and a deleted
-        metrics.csv).
-        """
-        try:
-            self.run_dir.prepare(self.cfg, resume)
-            if resume:
-                self.load_state_dict(self.run_dir.load_checkpoint(self.cfg))
-                if self.step > self.cfg.total_steps:
-                    raise RunDirError(f"the run in {self.run_dir.path} stands at step {self.step}, beyond the "
-                                      f"{self.cfg.total_steps} steps asked for; ask for at least {self.step} steps")
-                self.resumed_from = self.step
-                self.run_dir.write_config(self.cfg)
-                self.run_dir.restore_metrics(self.rows)
-        except BaseException:
-            self.run_dir.unlock()
-            self.env.close()
-            raise
+    # ---- the parts and their run directories ----------------------------------------------------------
+
+    @property
+    def cfg(self) -> TrainConfig:
+        """The (first) condition's resolved configuration; the schedule is the same for every part."""
+        return self.parts[0].cfg
 
     @property
     def num_agents(self) -> int:
-        """K, the number of seeds trained together."""
+        """K, the number of seeds (agent rows) trained together."""
         return len(self.seeds)
+
+    @property
+    def rows(self) -> list[dict[str, Any]]:
+        """The metrics rows of the (first) condition."""
+        return self.parts[0].metric_rows
+
+    @property
+    def visits(self) -> np.ndarray:
+        """The visitation counts of the (first) condition."""
+        return self.parts[0].visits
+
+    @property
+    def resumed_from(self) -> int:
+        """The step a resumed run continued from (-1: a fresh run)."""
+        return self.parts[0].resumed_from
+
+    @property
+    def agent(self):
+        """The double-DQN networks (`train.agent.dqn.DoubleDQN`)."""
+        return self.learner.agent
+
+    @property
+    def replay(self):
+        """The replay buffer of every row."""
+        return self.learner.replay
+
+    def _open_run_dirs(self, resume: list[bool]) -> None:
+        """Lock each part's run directory; on resume restore its checkpoint and rewrite config.json (and a
+        deleted metrics.csv). Resumed parts must all stand at the same step as the fresh ones (step 0).
+        """
+        opened: list[Part] = []
+        try:
+            for part, again in zip(self.parts, resume):
+                if part.run_dir is None:
+                    continue
+                part.run_dir.prepare(part.cfg, again)
+                opened.append(part)
+                if again:
+                    self._resume_part(part)
+            stands = {p.resumed_from if p.resumed_from >= 0 else 0 for p in self.parts}
+            if len(stands) > 1:
+                raise RunDirError(f"the packed runs stand at different steps ({sorted(stands)}); run them "
+                                  f"separately (without --pack)")
+        except BaseException:
+            for part in opened:
+                part.run_dir.unlock()
+            self._close_envs()
+            raise
+
+    def _resume_part(self, part: Part) -> None:
+        """Restore one part from its run directory's checkpoint."""
+        self._load_part(part, part.run_dir.load_checkpoint(part.cfg))
+        if self.step > part.cfg.total_steps:
+            raise RunDirError(f"the run in {part.run_dir.path} stands at step {self.step}, beyond the "
+                              f"{part.cfg.total_steps} steps asked for; ask for at least {self.step} steps")
+        part.resumed_from = self.step
+        part.run_dir.write_config(part.cfg)
+        part.run_dir.restore_metrics(part.metric_rows)
 
     def _fresh_state(self) -> None:
         """Counters and accumulators of a run that has not started."""
@@ -110,72 +184,48 @@ class Trainer:
         self.epoch = 0
         self.obs: np.ndarray | None = None
         self.autoreset = np.zeros(k, dtype=bool)
-        self.visits = np.zeros((k, *self.info.visit_shape), dtype=np.int64)
-        self.loss_sum = torch.zeros(k)
-        self.loss_count = 0
         self.train_reward = np.zeros(k)
-        self.rows: list[dict[str, Any]] = []
         self.last_checkpoint = -1
         self._interval = [0, 0.0]  # steps and seconds of training since the last evaluation
-        self._agent_index = np.arange(k)
 
     # ---- the two phases -------------------------------------------------------------------------------
 
     def start(self) -> None:
         """Reset each seed's world with its own seed (the only seeded reset of the run)."""
-        self.obs, _ = self.env.reset(seed=list(self.seeds))
+        self.obs = np.concatenate([p.env.reset(seed=p.seeds)[0] for p in self.parts]).astype(np.float32)
 
     def collect(self, n: int) -> None:
-        """Take ``n`` epsilon-greedy environment steps in every world and store the transitions."""
+        """Take ``n`` of the learner's actions in every world and let it observe the transitions."""
         if self.obs is None:
             self.start()
-        draws = np.stack([rng.random((n, 2)) for rng in self.rngs["explore"]], axis=1)  # (n, K, 2)
-        random_actions = (draws[..., 1] * self.info.num_actions).astype(np.int64)
-        for i in range(n):
-            explore = draws[i, :, 0] < self.cfg.dqn.epsilon(self.step)
-            actions = random_actions[i]
-            if not explore.all():
-                with torch.no_grad():
-                    greedy = self.agent.greedy(torch.from_numpy(self.obs).unsqueeze(1))[:, 0]
-                actions = np.where(explore, actions, greedy)
-            self._env_step(actions)
+        self.learner.begin_collect(n)
+        for _ in range(n):
+            self._env_step(self.learner.act(self.obs, self.step))
 
     def _env_step(self, actions: np.ndarray) -> None:
         """Step every world once with ``actions`` and record what happened."""
         stored = ~self.autoreset  # worlds whose previous step ended only reset now
-        encoded = self.replay.encode(self.obs)
-        obs, reward, terminated, truncated, info = self.env.step(actions)
-        self.replay.add(stored, encoded, actions, reward, terminated)
-        ended = (terminated | truncated) & stored
-        if ended.any():  # the final observation gets its own slot: it is the last transition's next state
-            self.replay.add(ended, self.replay.encode(obs))
-        self.autoreset = ended
-        rows, cols = self.info.visit_grid.cells(info["agent_pos"])
-        self.visits[self._agent_index, rows, cols] += 1
+        results = [p.env.step(actions[p.rows]) for p in self.parts]
+        obs, reward, terminated, truncated = (np.concatenate([r[i] for r in results]) for i in range(4))
+        self.learner.observe(stored, self.obs, actions, reward, terminated, truncated, obs)
+        self.autoreset = (terminated | truncated) & stored
+        for part, result in zip(self.parts, results):
+            rows, cols = self.info.visit_grid.cells(result[4]["agent_pos"])
+            part.visits[np.arange(part.cfg.run.seeds), rows, cols] += 1
         self.train_reward += reward
-        self.obs = obs
+        self.obs = obs.astype(np.float32, copy=False)
         self.step += 1
 
-    def learn(self, n: int) -> None:
-        """Take ``n`` gradient steps for every seed, each on its own minibatch."""
-        slots = self.replay.sample_indices(self.rngs["sample"], n, self.cfg.dqn.batch_size)
-        with torch.no_grad():
-            for i in range(n):
-                batch = self.replay.batch(slots[:, i])
-                rewards = batch.rewards
-                if self.rnd is not None:
-                    rewards = rewards + self.rnd.bonus(batch.next_obs)
-                self.loss_sum += self.agent.update(batch.obs_pairs, batch.actions, rewards, batch.terminated)
-                self.loss_count += 1
+    def learn(self) -> None:
+        """The learner's update phase."""
+        self.learner.learn()
 
     def train_epoch(self) -> None:
-        """Collect one epoch of steps (after the warm-up, if not done yet), then learn from the buffer."""
+        """Collect what the learner's schedule asks for, then let it learn."""
         began = time.perf_counter()
         start_step = self.step
-        if self.step < self.cfg.dqn.warmup_steps:
-            self.collect(self.cfg.dqn.warmup_steps - self.step)
-        self.collect(self.cfg.dqn.epoch_steps)
-        self.learn(self.cfg.dqn.updates_per_epoch)
+        self.collect(self.learner.steps_to_collect(self.step))
+        self.learn()
         self.epoch += 1
         self._interval[0] += self.step - start_step
         self._interval[1] += time.perf_counter() - began
@@ -184,35 +234,32 @@ class Trainer:
 
     @property
     def evaluator(self) -> Evaluator:
-        """The evaluation protocol's batched environment (built on first use)."""
+        """The evaluation protocol's batched environment over every row (built on first use)."""
         if self._evaluator is None:
-            test_kwargs = evaluation_kwargs(self.info.test_kwargs, self.cfg.eval.eval_horizon)
-            self._evaluator = Evaluator(self.task.env_id, test_kwargs, self.num_agents,
-                                        self.cfg.eval.eval_rollouts, self.cfg.eval.eval_epsilon,
-                                        self.info.num_actions)
+            ev = self.cfg.eval
+            self._evaluator = Evaluator(self.task.env_id, evaluation_kwargs(self.info.test_kwargs, ev.eval_horizon),
+                                        self.num_agents, ev.eval_rollouts, ev.eval_epsilon, self.info.num_actions)
         return self._evaluator
 
-    def evaluate(self) -> list[dict[str, Any]]:
-        """Run the evaluation protocol, append one metrics row per seed, and return those rows."""
-        result = self.evaluator(self.agent, self.seeds, self.step)
+    def evaluate(self) -> list[list[dict[str, Any]]]:
+        """Run the evaluation protocol; append one metrics row per seed to each part; return each part's rows."""
+        result = self.evaluator(self.learner, self.seeds, self.step)
         steps, seconds = self._interval
         rate = steps / seconds if seconds > 0 else math.nan
-        losses = (self.loss_sum / max(self.loss_count, 1)).tolist()
-        rows = []
-        for k, seed in enumerate(self.seeds):
-            rows.append({
-                "step": self.step, "seed": seed, "epsilon": self.cfg.dqn.epsilon(self.step),
-                "loss": losses[k] if self.loss_count else math.nan,
-                "success": float(result.success[k]) if self.task.metric == "success" else math.nan,
-                "return": float(result.returns[k]), "train_reward": float(self.train_reward[k]),
-                "steps_per_s": rate,
-            })
-        self.rows += rows
-        self.loss_sum.zero_()
-        self.loss_count = 0
+        losses = self.learner.take_losses()
+        out = []
+        for part in self.parts:
+            rows = [{"step": self.step, "seed": seed, "epsilon": part.cfg.dqn.epsilon(self.step),
+                     "loss": float(losses[k]),
+                     "success": float(result.success[k]) if self.task.metric == "success" else math.nan,
+                     "return": float(result.returns[k]), "train_reward": float(self.train_reward[k]),
+                     "steps_per_s": rate}
+                    for k, seed in zip(range(part.rows.start, part.rows.stop), part.seeds)]
+            part.metric_rows += rows
+            out.append(rows)
         self.train_reward[:] = 0.0
         self._interval = [0, 0.0]
-        return rows
+        return out
 
     # ---- the whole run --------------------------------------------------------------------------------
 
@@ -220,135 +267,112 @@ class Trainer:
         """Train to the step budget (from wherever the run stands), evaluating and checkpointing on schedule.
 
         SIGINT/SIGTERM stop the run cleanly at the end of the current epoch, with a checkpoint.
-        Returns all metrics rows.
+        Returns the (first) condition's metrics rows; every part's are in ``parts[i].metric_rows``.
         """
         cfg = self.cfg
         if self.obs is None:
             self.start()
         if self.last_checkpoint < 0:
             self.save()
-        resumed = self.resumed_from >= 0
-        logger = RunLogger(self.run_dir, cfg, self.step if resumed else None) if self.run_dir is not None else None
-        with stop_on_signal() as stop, progress_bar(cfg, self.step) as bar:
+        loggers = [RunLogger(p.run_dir, p.cfg, p.resumed_from if p.resumed_from >= 0 else None)
+                   if p.run_dir is not None else None for p in self.parts]
+        with stop_on_signal() as stop, progress_bar(cfg, self.step, len(self.parts)) as bar:
             while self.epoch < cfg.num_epochs and not stop.is_set():
                 before = self.step
                 self.train_epoch()
                 done = self.epoch == cfg.num_epochs
                 if self.epoch % cfg.eval_epochs == 0 or done:
-                    rows = self.evaluate()
-                    if logger is not None:
-                        logger.log(self, rows)
-                    bar.set_postfix(postfix(rows, self.num_agents, cfg), refresh=False)
+                    latest = self.evaluate()
+                    for part, logger in zip(self.parts, loggers):
+                        if logger is not None:
+                            logger.log(part.metric_rows, part.visits, self.step)
+                    bar.set_postfix(postfix([r for rows in latest for r in rows], self.num_agents), refresh=False)
                 if done or stop.is_set() or self.step - self.last_checkpoint >= cfg.run.checkpoint_every:
                     self.save()
                 bar.update(self.step - before)
-        if logger is not None:
-            logger.close()
+        for logger in loggers:
+            if logger is not None:
+                logger.close()
         return self.rows
 
     def save(self) -> None:
-        """Write a checkpoint (if this trainer keeps a run directory), then continue from what it holds.
+        """Write each part's checkpoint (where it keeps a run directory), then continue from what they hold.
 
         Continuing from the saved environment state, exactly as a resumed run does, keeps a run that is
         interrupted and resumed identical to one that is not (see `train.tasks.restore_env_state`).
         """
         self.last_checkpoint = self.step
-        state = self.state_dict()
-        if self.run_dir is not None:
-            self.run_dir.save_checkpoint(state)
-        if state["env"] is not None:
-            restore_env_state(self.env, state["env"])
+        for index, part in enumerate(self.parts):
+            state = self.state_dict(index)
+            if part.run_dir is not None:
+                part.run_dir.save_checkpoint(state)
+            if state["env"] is not None:
+                restore_env_state(part.env, state["env"])
 
-    def state_dict(self) -> dict[str, Any]:
-        """Everything needed to continue the run exactly, as data: JSON values, arrays and tensors."""
+    def state_dict(self, part: int = 0) -> dict[str, Any]:
+        """Everything needed to continue one part's run exactly, as data: JSON values, arrays and tensors.
+
+        A packed part's state is the state of the same run trained alone, so either can resume it.
+        """
+        p = self.parts[part]
         return {
-            "version": CHECKPOINT_VERSION, "config": self.cfg.to_dict(), "step": self.step,
-            "epoch": self.epoch, "obs": self.obs, "autoreset": self.autoreset.copy(),
-            "env": env_state(self.env) if self.obs is not None else None,
-            "agent": self.agent.state_dict(), "rnd": self.rnd.state_dict() if self.rnd else None,
-            "replay": self.replay.state_dict(),
-            "rngs": {name: [g.bit_generator.state for g in gens] for name, gens in self.rngs.items()},
-            "torch_rng": torch.get_rng_state(),
-            "visits": self.visits.copy(), "loss_sum": self.loss_sum.clone(), "loss_count": self.loss_count,
-            "train_reward": self.train_reward.copy(), "rows": list(self.rows),
+            "version": CHECKPOINT_VERSION, "config": p.cfg.to_dict(), "step": self.step, "epoch": self.epoch,
+            "obs": None if self.obs is None else self.obs[p.rows].copy(),
+            "autoreset": self.autoreset[p.rows].copy(),
+            "env": env_state(p.env) if self.obs is not None else None,
+            **self.learner.state_dict(p.rows),
+            "torch_rng": torch.get_rng_state(), "visits": p.visits.copy(),
+            "train_reward": self.train_reward[p.rows].copy(), "rows": list(p.metric_rows),
             "last_checkpoint": self.last_checkpoint,
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore a `state_dict` (same resolved configuration); refuse arrays of the wrong shape."""
+        """Restore a `state_dict` of a single-condition trainer (same resolved configuration)."""
+        self._load_part(self.parts[0], state)
+
+    def _load_part(self, part: Part, state: dict[str, Any]) -> None:
+        """Restore one part from its state; refuse a wrong version or arrays of the wrong shape."""
         if state.get("version") != CHECKPOINT_VERSION:
             raise RunDirError(f"checkpoint layout version {state.get('version')} is not {CHECKPOINT_VERSION}; "
                               f"re-run the training with this ecorl in a new --out directory")
         try:
-            self._load_arrays(state)
+            self._load_arrays(part, state)
         except (KeyError, TypeError, ValueError, RuntimeError) as err:
             raise RunDirError(f"the checkpoint does not fit this run ({type(err).__name__}: {err}); start a "
                               f"fresh run in another --out directory") from None
 
-    def _load_arrays(self, state: dict[str, Any]) -> None:
-        """The body of `load_state_dict`."""
-        _check_shapes(state["agent"], self.agent.state_dict(), "agent")
-        if self.rnd is not None:
-            _check_shapes(state["rnd"], self.rnd.state_dict(), "rnd")
-        if state["env"] is not None:
-            self.start()  # a seeded reset, then every world is overwritten with its saved state
-            restore_env_state(self.env, state["env"])
-        self.agent.load_state_dict(state["agent"])
-        if self.rnd is not None:
-            self.rnd.load_state_dict(state["rnd"])
-        self.replay.load_state_dict(state["replay"])
-        for name, gens in self.rngs.items():
-            for g, saved in zip(gens, state["rngs"][name], strict=True):
-                g.bit_generator.state = saved
-        torch.set_rng_state(state["torch_rng"])
-        k = self.num_agents
-        for name, shape in (("visits", self.visits.shape), ("train_reward", (k,)), ("autoreset", (k,)),
+    def _load_arrays(self, part: Part, state: dict[str, Any]) -> None:
+        """The body of `_load_part`."""
+        k = part.cfg.run.seeds
+        for name, shape in (("visits", part.visits.shape), ("train_reward", (k,)), ("autoreset", (k,)),
                             ("obs", None if state["obs"] is None else (k, self.info.obs_dim))):
             if shape is not None and np.shape(state[name]) != shape:
                 raise ValueError(f"{name} has shape {np.shape(state[name])}, this run needs {shape}")
+        self.learner.load_state_dict(state, part.rows)
+        if state["env"] is not None:
+            part.env.reset(seed=part.seeds)  # a seeded reset, then every world is overwritten with its saved state
+            restore_env_state(part.env, state["env"])
+        torch.set_rng_state(state["torch_rng"])
         self.step, self.epoch = int(state["step"]), int(state["epoch"])
-        self.obs = None if state["obs"] is None else np.asarray(state["obs"], dtype=np.float32)
-        self.autoreset = np.asarray(state["autoreset"], dtype=bool).copy()
-        self.visits[...] = state["visits"]
-        self.loss_sum.copy_(state["loss_sum"])
-        self.loss_count = int(state["loss_count"])
-        self.train_reward[:] = state["train_reward"]
-        self.rows = list(state["rows"])
+        if state["obs"] is not None:
+            if self.obs is None:
+                self.obs = np.zeros((self.num_agents, self.info.obs_dim), dtype=np.float32)
+            self.obs[part.rows] = state["obs"]
+        self.autoreset[part.rows] = np.asarray(state["autoreset"], dtype=bool)
+        part.visits[...] = state["visits"]
+        self.train_reward[part.rows] = state["train_reward"]
+        part.metric_rows[:] = list(state["rows"])
         self.last_checkpoint = int(state["last_checkpoint"])
 
-    def close(self) -> None:
-        """Release the environments and the run directory's lock."""
-        self.env.close()
-        if self.run_dir is not None:
-            self.run_dir.unlock()
+    def _close_envs(self) -> None:
+        for part in self.parts:
+            part.env.close()
         if self._evaluator is not None:
             self._evaluator.close()
 
-
-def _check_shapes(saved: Any, live: Any, where: str) -> None:
-    """Raise ValueError where a saved tensor's shape differs from the live one (copy_ would broadcast)."""
-    if isinstance(live, dict):
-        for key, value in live.items():
-            _check_shapes(saved[key], value, f"{where}/{key}")
-    elif isinstance(live, torch.Tensor) and (not isinstance(saved, torch.Tensor) or saved.shape != live.shape):
-        shape = tuple(saved.shape) if isinstance(saved, torch.Tensor) else type(saved).__name__
-        raise ValueError(f"{where} has shape {shape}, this run needs {tuple(live.shape)}")
-
-
-def _memory_bytes() -> int | None:
-    """Physical memory of this machine in bytes (None where unknown)."""
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
-def check_replay_memory(num_agents: int, capacity: int, obs_dim: int, binary: bool, float_dtype: str) -> int:
-    """Refuse a replay buffer larger than this machine's memory before allocating it; return its bytes."""
-    need = Replay.bytes_needed(num_agents, capacity, obs_dim, binary, float_dtype)
-    have = _memory_bytes()
-    if have is not None and need > have:
-        raise ValueError(f"the replay buffers need {need / 2**30:.1f} GiB ({num_agents} seeds x {capacity} slots x "
-                         f"{need // (num_agents * capacity)} bytes), more than this machine's "
-                         f"{have / 2**30:.1f} GiB of memory; use fewer --seeds or a smaller --buffer-size")
-    return need
+    def close(self) -> None:
+        """Release the environments and the run directories' locks."""
+        self._close_envs()
+        for part in self.parts:
+            if part.run_dir is not None:
+                part.run_dir.unlock()

@@ -29,7 +29,7 @@ def test_batched_seeds_match_seeds_trained_alone(extra):
         assert np.array_equal(alone.replay.action[0], together.replay.action[k])
         assert torch.allclose(alone.agent.online[0], together.agent.online[k], rtol=1e-4, atol=1e-6)
         assert torch.allclose(alone.agent.target[0], together.agent.target[k], rtol=1e-4, atol=1e-6)
-        assert torch.allclose(alone.loss_sum[0], together.loss_sum[k], rtol=1e-4, atol=1e-9)
+        assert torch.allclose(alone.learner.loss_sum[0], together.learner.loss_sum[k], rtol=1e-4, atol=1e-9)
         assert np.array_equal(alone.visits[0], together.visits[k])
 
 

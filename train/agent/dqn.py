@@ -48,7 +48,7 @@ class FlatAdam:
         self.lr, self.eps, self.betas = lr, eps, betas
         self.exp_avg = torch.zeros_like(params)
         self.exp_avg_sq = torch.zeros_like(params)
-        self._step_tensor = torch.zeros((), dtype=torch.float32)
+        self._step_tensor = torch.zeros((), dtype=torch.float32, device=params.device)
         # PyTorch's fused kernel (what torch.optim.Adam(fused=True) calls) does the whole update in one
         # pass, ~3x faster here than the six elementwise operations below, which remain the fallback.
         self.fused = fused and hasattr(torch, "_fused_adam_")
@@ -86,18 +86,60 @@ class FlatAdam:
         self._step_tensor.fill_(state["steps"])
 
 
+class RowGroupAdam:
+    """Adam with one learning rate per agent row: one `FlatAdam` per run of equal rates, on views of the rows.
+
+    Rows that share a rate form one contiguous group, so a single-rate buffer takes exactly the path of
+    `FlatAdam`; the state is laid out as `FlatAdam`'s (moments (K, P) and one step count).
+    """
+
+    def __init__(self, params: Tensor, lrs: Sequence[float], eps: float = 1e-8):
+        self.groups: list[tuple[slice, FlatAdam]] = []
+        start = 0
+        for end in range(1, len(lrs) + 1):
+            if end == len(lrs) or lrs[end] != lrs[start]:
+                self.groups.append((slice(start, end), FlatAdam(params[start:end], lrs[start], eps)))
+                start = end
+
+    @property
+    def steps(self) -> int:
+        """Updates taken so far."""
+        return self.groups[0][1].steps
+
+    def step(self, params: Tensor, grad: Tensor) -> None:
+        """Apply one Adam step to every row group of ``params`` in place."""
+        for rows, adam in self.groups:
+            adam.step(params[rows], grad[rows])
+
+    def state_dict(self) -> dict[str, Any]:
+        """The optimiser state, as one `FlatAdam` of all rows would hold it."""
+        parts = [adam.state_dict() for _, adam in self.groups]
+        return {"exp_avg": torch.cat([p["exp_avg"] for p in parts]),
+                "exp_avg_sq": torch.cat([p["exp_avg_sq"] for p in parts]), "steps": parts[0]["steps"]}
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a `state_dict`."""
+        for rows, adam in self.groups:
+            adam.load_state_dict({"exp_avg": state["exp_avg"][rows], "exp_avg_sq": state["exp_avg_sq"][rows],
+                                  "steps": state["steps"]})
+
+
 class DoubleDQN:
     """Online and target Q-networks of K agents, their optimiser, and the double-DQN gradient step."""
 
-    def __init__(self, net: QNetwork, cfg: DQNConfig, init_rngs: Sequence[np.random.Generator]) -> None:
+    def __init__(self, net: QNetwork, cfg: DQNConfig, init_rngs: Sequence[np.random.Generator],
+                 lrs: Sequence[float] | None = None, device: str | torch.device = "cpu") -> None:
+        """``lrs``: a learning rate per agent (default: ``cfg.lr`` for all); ``device``: where the weights,
+        the optimiser state and every update live.
+        """
         self.net, self.cfg = net, cfg
         rows, target_rows = [], []
         for rng in init_rngs:  # per agent, online then target, so the draws do not depend on K
             rows.append(net.init(rng, cfg.init))
             target_rows.append(rows[-1] if cfg.target_init == "copy" else net.init(rng, cfg.init))
-        self.online = torch.from_numpy(np.stack(rows))
-        self.target = torch.from_numpy(np.stack(target_rows))
-        self.adam = FlatAdam(self.online, cfg.lr, cfg.adam_eps)
+        self.online = torch.from_numpy(np.stack(rows)).to(device)
+        self.target = torch.from_numpy(np.stack(target_rows)).to(device)
+        self.adam = RowGroupAdam(self.online, list(lrs) if lrs is not None else [cfg.lr] * len(rows), cfg.adam_eps)
         self._online_views = net.bind(self.online)
         self._target_views = net.bind(self.target)
 
@@ -112,7 +154,7 @@ class DoubleDQN:
 
     def greedy(self, obs: Tensor) -> np.ndarray:
         """Greedy actions (K, N) of observations (K, N, obs_dim)."""
-        return self.q_values(obs).argmax(-1).numpy()
+        return self.q_values(obs.to(self.online.device)).argmax(-1).cpu().numpy()
 
     def update(self, obs_pairs: Tensor, actions: Tensor, rewards: Tensor, terminated: Tensor) -> Tensor:
         """One double-DQN gradient step for every agent; return each agent's TD loss (K,).
@@ -132,6 +174,11 @@ class DoubleDQN:
         self.adam.step(self.online, grad)
         self.target.lerp_(self.online, self.cfg.tau)
         return td.square().mean(1)
+
+    @property
+    def device(self) -> torch.device:
+        """Where the weights live."""
+        return self.online.device
 
     def state_dict(self) -> dict[str, Any]:
         """Networks and optimiser state."""

@@ -147,26 +147,30 @@ class Replay:
             terminated=torch.from_numpy((np.take(self.flags, start) & TERMINATED).astype(np.float32)),
         )
 
-    def state_dict(self) -> dict[str, Any]:
-        """Views of the filled part of the buffer (slots beyond every agent's size are all zero).
+    def state_dict(self, rows: slice = slice(None)) -> dict[str, Any]:
+        """Views of the filled part of the buffer of agents ``rows`` (slots beyond their sizes are all zero).
 
-        The arrays are views, not copies: pickle or copy them before the buffer changes.
+        The arrays are views, not copies: pickle or copy them before the buffer changes. The state of a row
+        range is what a buffer of just those agents would hold, so a packed run saves what a separate one does.
         """
-        used = int(self.size.max())
-        return {"obs": self.obs[:, :used], "action": self.action[:, :used], "reward": self.reward[:, :used],
-                "flags": self.flags[:, :used], "ptr": self.ptr.copy(), "size": self.size.copy()}
+        size = self.size[rows]
+        used = int(size.max()) if size.size else 0
+        return {"obs": self.obs[rows, :used], "action": self.action[rows, :used],
+                "reward": self.reward[rows, :used], "flags": self.flags[rows, :used],
+                "ptr": self.ptr[rows].copy(), "size": size.copy()}
 
-    def load_state_dict(self, state: dict[str, Any]) -> None:
-        """Restore a `state_dict` into this (same-shaped) buffer."""
-        if state["obs"].shape[0] != self.num_agents or state["obs"].shape[2] != self.obs.shape[2]:
+    def load_state_dict(self, state: dict[str, Any], rows: slice = slice(None)) -> None:
+        """Restore a `state_dict` into agents ``rows`` of this (same-shaped) buffer."""
+        agents = len(range(*rows.indices(self.num_agents)))
+        if state["obs"].shape[0] != agents or state["obs"].shape[2] != self.obs.shape[2]:
             raise ValueError("the saved replay buffer does not match this run's agents or observation size")
         used = state["obs"].shape[1]
         shapes = [state[n].shape for n in ("action", "reward", "flags")]
-        if used > self.capacity or any(shape != (self.num_agents, used) for shape in shapes):
+        if used > self.capacity or any(shape != (agents, used) for shape in shapes):
             raise ValueError("the saved replay buffer does not match this run's capacity")
-        if state["ptr"].shape != self.ptr.shape or state["size"].shape != self.size.shape:
+        if state["ptr"].shape != (agents,) or state["size"].shape != (agents,):
             raise ValueError("the saved replay pointers do not match this run's agents")
         for name in ("obs", "action", "reward", "flags"):
-            getattr(self, name)[:, :used] = state[name]
-        self.ptr[:] = state["ptr"]
-        self.size[:] = state["size"]
+            getattr(self, name)[rows, :used] = state[name]
+        self.ptr[rows] = state["ptr"]
+        self.size[rows] = state["size"]

@@ -24,10 +24,10 @@ Tensor = torch.Tensor
 class RunningMoments:
     """Per-agent running mean and variance of a stream of batches (Chan et al.'s parallel update)."""
 
-    def __init__(self, num_agents: int) -> None:
-        self.count = torch.zeros(num_agents, dtype=torch.float64)
-        self.mean = torch.zeros(num_agents, dtype=torch.float64)
-        self.m2 = torch.zeros(num_agents, dtype=torch.float64)
+    def __init__(self, num_agents: int, device: str | torch.device = "cpu") -> None:
+        self.count = torch.zeros(num_agents, dtype=torch.float64, device=device)
+        self.mean = torch.zeros(num_agents, dtype=torch.float64, device=device)
+        self.m2 = torch.zeros(num_agents, dtype=torch.float64, device=device)
 
     def update(self, values: Tensor) -> None:
         """Fold in a batch ``values`` (K, N)."""
@@ -52,19 +52,20 @@ class RunningMoments:
 
     def load_state_dict(self, state: dict[str, Tensor]) -> None:
         """Restore a `state_dict`."""
-        self.count, self.mean, self.m2 = (state[k].clone() for k in ("count", "mean", "m2"))
+        self.count, self.mean, self.m2 = (state[k].to(self.count.device).clone() for k in ("count", "mean", "m2"))
 
 
 class RND:
     """Target and predictor networks of K agents, the predictor's optimiser and the error statistics."""
 
-    def __init__(self, obs_dim: int, cfg: RNDConfig, rngs: Sequence[np.random.Generator]) -> None:
+    def __init__(self, obs_dim: int, cfg: RNDConfig, rngs: Sequence[np.random.Generator],
+                 device: str | torch.device = "cpu") -> None:
         self.cfg = cfg
         self.net = MLP((obs_dim, *cfg.rnd_layers))
-        self.target = torch.from_numpy(np.stack([self.net.init(r, "torch") for r in rngs]))
-        self.predictor = torch.from_numpy(np.stack([self.net.init(r, "torch") for r in rngs]))
+        self.target = torch.from_numpy(np.stack([self.net.init(r, "torch") for r in rngs])).to(device)
+        self.predictor = torch.from_numpy(np.stack([self.net.init(r, "torch") for r in rngs])).to(device)
         self.adam = FlatAdam(self.predictor, cfg.rnd_lr)
-        self.moments = RunningMoments(len(rngs))
+        self.moments = RunningMoments(len(rngs), device)
         self._target_views = self.net.bind(self.target)
         self._predictor_views = self.net.bind(self.predictor)
 

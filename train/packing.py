@@ -1,0 +1,107 @@
+"""Which conditions can train packed in one learner, on which device, and whether their replay fits.
+
+Conditions of one task pack into one trainer when they differ only in what a learner row may hold on its
+own (`PER_ROW`): the environment's knobs, the learning rate, the exploration schedule, the RND flag and the
+seeds. Everything else (network, batch, replay size, schedule, evaluation, step budget) is shared, because
+the packed gradient step and the lockstep loop run it once for all rows.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+
+import torch
+
+from train.agent.replay import Replay
+from train.config import TrainConfig
+
+PER_ROW = {"env": ("dynamism", "shaping", "reset_free", "reward", "horizon", "env_kwargs"),
+           "dqn": ("lr", "eps_start", "eps_end", "eps_decay_steps"),
+           "rnd": ("rnd",),
+           "run": ("seeds", "first_seed")}
+"""Settings that may differ between the conditions of one pack, by config section."""
+
+
+def shared_settings(cfg: TrainConfig) -> dict:
+    """The settings every condition of a pack must share (RND's own settings only where RND is on)."""
+    data = cfg.to_dict()
+    for section, names in PER_ROW.items():
+        for name in names:
+            data[section].pop(name)
+    if not cfg.rnd.rnd:
+        data.pop("rnd")
+    return data
+
+
+def pack_key(cfg: TrainConfig) -> str:
+    """Conditions with equal keys can share one trainer (the RND settings are compared apart)."""
+    data = shared_settings(cfg)
+    data.pop("rnd", None)
+    return json.dumps(data, sort_keys=True)
+
+
+def check_packable(cfgs: Sequence[TrainConfig]) -> None:
+    """Raise ValueError naming the first shared setting on which two conditions of a pack differ."""
+    first = _flat(shared_settings(cfgs[0]))
+    rnd_first = None
+    for cfg in cfgs:
+        flat = _flat(shared_settings(cfg))
+        rnd = {k: v for k, v in flat.items() if k.startswith("rnd.")}
+        rnd_first = rnd_first or rnd or None
+        if rnd and rnd != rnd_first:
+            raise ValueError("packed conditions with RND must share its settings; run them separately")
+        for key in sorted(set(first) | set(flat)):
+            if not key.startswith("rnd.") and first.get(key) != flat.get(key):
+                raise ValueError(f"cannot pack these conditions: they differ in {key} ({first.get(key)!r} vs "
+                                 f"{flat.get(key)!r}); run them separately (without --pack)")
+
+
+def _flat(data: dict) -> dict:
+    """section.name -> value."""
+    return {f"{s}.{k}": v for s, fields in data.items() for k, v in fields.items()}
+
+
+def group_packable(cfgs: Sequence[TrainConfig]) -> list[list[int]]:
+    """Indices of ``cfgs`` grouped into packs (first-appearance order; RND settings split packs too)."""
+    groups: dict[str, list[int]] = {}
+    for i, cfg in enumerate(cfgs):
+        rnd = json.dumps(shared_settings(cfg).get("rnd"), sort_keys=True)
+        groups.setdefault(pack_key(cfg) + rnd if cfg.rnd.rnd else pack_key(cfg), []).append(i)
+    return list(groups.values())
+
+
+def check_device(device: str) -> None:
+    """Raise ValueError (one line, with the fix) unless torch can use ``device`` here."""
+    if device == "cpu":
+        return
+    if device.startswith("cuda"):
+        if not torch.cuda.is_available():
+            raise ValueError(f"--device {device}: this machine has no CUDA device (torch {torch.__version__}, "
+                             f"torch.cuda.is_available() is False); use --device cpu")
+        index = int(device.partition(":")[2] or 0)
+        if index >= torch.cuda.device_count():
+            raise ValueError(f"--device {device}: only {torch.cuda.device_count()} CUDA device(s) here; "
+                             f"use cuda:0 .. cuda:{torch.cuda.device_count() - 1}")
+        return
+    raise ValueError(f"unknown device {device!r}; use cpu, cuda or cuda:N")
+
+
+def _memory_bytes() -> int | None:
+    """Physical memory of this machine in bytes (None where unknown)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_replay_memory(num_agents: int, capacity: int, obs_dim: int, binary: bool, float_dtype: str) -> int:
+    """Refuse a replay buffer larger than this machine's memory before allocating it; return its bytes."""
+    need = Replay.bytes_needed(num_agents, capacity, obs_dim, binary, float_dtype)
+    have = _memory_bytes()
+    if have is not None and need > have:
+        raise ValueError(f"the replay buffers need {need / 2**30:.1f} GiB ({num_agents} seeds x {capacity} slots x "
+                         f"{need // (num_agents * capacity)} bytes), more than this machine's "
+                         f"{have / 2**30:.1f} GiB of memory; use fewer --seeds or a smaller --buffer-size")
+    return need
