@@ -84,6 +84,9 @@ class Trainer:
         check_packable(cfgs)
         run = cfgs[0].run
         check_device(run.device)
+        if run.device.startswith("cuda"):  # full float32 products, so a GPU run matches the CPU's to rounding
+            torch.backends.cuda.matmul.allow_tf32 = False
+            torch.backends.cudnn.allow_tf32 = False
         torch.set_num_threads(run.threads)
         # Adam's second moments of inputs that are never active decay through the denormal range, where
         # CPU arithmetic is ~100x slower; flushing only changes values below ~1e-38 (to zero).

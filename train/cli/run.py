@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -34,6 +35,13 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"results directory (default: {DEFAULT_OUT})")
     parser.add_argument("--jobs", type=positive, default=None,
                         help="local processes running at once (default: the number of CPU cores)")
+    parser.add_argument("--pack", action="store_true",
+                        help="train the conditions of a task that share their settings (all but the env knobs, "
+                             "learning rate, exploration and RND flag) packed: one batched update for many; on "
+                             "the CPU one pack per --jobs process, on a GPU (--device cuda, where it is the "
+                             "default) one pack per task; each condition keeps its own run directory")
+    parser.add_argument("--device", default=None, metavar="D",
+                        help="where the networks and updates run: cpu (default) or cuda[:N]")
     parser.add_argument("--seeds", type=positive, default=None, help="override the budget's seeds per condition")
     parser.add_argument("--steps", type=positive, default=None, help="override the budget's steps per seed")
     parser.add_argument("--dry-run", action="store_true", help="print the runs (and their state), run nothing")
@@ -67,11 +75,16 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         parser.error("name an EXPERIMENT (or pass --list)")
     try:
         exp = get_experiment(args.experiment)
-        jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition)
+        jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition, args.device)
     except ValueError as err:
         parser.error(str(err))
     if args.out.exists() and not args.out.is_dir():
         raise UserError(f"--out {args.out} is a file, not a directory; choose a directory path")
+    if args.device is not None:
+        from train.packing import check_device
+
+        with user_errors(ValueError):
+            check_device(args.device)
     if args.dry_run:
         print_plan(jobs)
         return 0
@@ -81,7 +94,9 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
           f"results in {where}", file=sys.stderr)
     try:
         with user_errors(RuntimeError):
-            results = run_jobs(jobs, args.executor, args.jobs, args.address, args.progress)
+            gpu = (args.device or "cpu").startswith("cuda")
+            pack = 1 if gpu else (args.jobs or os.cpu_count() or 1) if args.pack else 0
+            results = run_jobs(jobs, args.executor, args.jobs, args.address, args.progress, pack)
     except KeyboardInterrupt:
         print(f"interrupted: running conditions saved a checkpoint; re-run the same command to resume "
               f"({where})", file=sys.stderr)

@@ -12,7 +12,7 @@ import threading
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 
-from train.experiments.jobs import Job, JobResult, execute
+from train.experiments.jobs import Job, JobResult, Pack, execute_unit
 from train.fileio import die_with_parent
 
 _STOP = None
@@ -44,9 +44,9 @@ _INTERRUPTED = False
 """In a local worker process: a job of this worker was stopped by a signal, so it takes no further job."""
 
 
-def _execute_unless_stopped(job: Job) -> JobResult:
-    """`execute`, unless the sweep was interrupted before this job started; a worker whose sweep died
-    exits instead of taking (or reporting) a job.
+def _execute_unless_stopped(job: Job | Pack) -> list[JobResult]:
+    """`execute_unit`, unless the sweep was interrupted before this job (or pack) started; a worker whose
+    sweep died exits instead of taking (or reporting) a job.
 
     A worker whose job a signal stopped takes no further job either: the kernel's parent-death signal can
     arrive when the sweep's first thread dies, while its other threads (same pid) still live.
@@ -55,12 +55,17 @@ def _execute_unless_stopped(job: Job) -> JobResult:
     if _parent_gone():
         os._exit(0)
     if _INTERRUPTED or (_STOP is not None and _STOP.is_set()):
-        return JobResult(job.name, "interrupted")
-    result = execute(job)
-    _INTERRUPTED = _INTERRUPTED or result.status == "interrupted"
+        return _all(job, "interrupted")
+    results = execute_unit(job)
+    _INTERRUPTED = _INTERRUPTED or any(r.status == "interrupted" for r in results)
     if _parent_gone():
         os._exit(0)
-    return result
+    return results
+
+
+def _all(unit: Job | Pack, status: str, error: str = "") -> list[JobResult]:
+    """The same result for every condition of a job or pack."""
+    return [JobResult(j.name, status, error=error) for j in (unit.jobs if isinstance(unit, Pack) else [unit])]
 
 
 class _Terminated(KeyboardInterrupt):
@@ -84,7 +89,7 @@ def _sigterm_interrupts():
         signal.signal(signal.SIGTERM, previous)
 
 
-def run_local(jobs: Sequence[Job], workers: int, on_result: Callable[[JobResult], None]) -> list[JobResult]:
+def run_local(jobs: Sequence[Job | Pack], workers: int, on_result: Callable[[JobResult], None]) -> list[JobResult]:
     """Run ``jobs`` in up to ``workers`` local processes (one job per process at a time)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
@@ -110,7 +115,8 @@ def run_local(jobs: Sequence[Job], workers: int, on_result: Callable[[JobResult]
     return results
 
 
-def _collect(pool, jobs: Sequence[Job], results: list[JobResult], on_result: Callable[[JobResult], None]) -> None:
+def _collect(pool, jobs: Sequence[Job | Pack], results: list[JobResult],
+             on_result: Callable[[JobResult], None]) -> None:
     """Submit ``jobs`` to ``pool`` and gather their results as they finish."""
     from concurrent.futures import FIRST_COMPLETED, wait
 
@@ -120,11 +126,12 @@ def _collect(pool, jobs: Sequence[Job], results: list[JobResult], on_result: Cal
         for fut in finished:
             job = pending.pop(fut)
             try:
-                result = fut.result()
+                done = fut.result()
             except Exception as err:  # a worker died (e.g. killed): report it, keep going
-                result = JobResult(job.name, "failed", error=f"worker process failed: {err!r}")
-            results.append(result)
-            on_result(result)
+                done = _all(job, "failed", f"worker process failed: {err!r}")
+            for result in done:
+                results.append(result)
+                on_result(result)
 
 
 def _import_ray():
@@ -137,7 +144,7 @@ def _import_ray():
     return ray
 
 
-def run_ray(jobs: Sequence[Job], address: str | None, on_result: Callable[[JobResult], None]) -> list[JobResult]:
+def run_ray(jobs: Sequence[Job | Pack], address: str | None, on_result: Callable[[JobResult], None]) -> list[JobResult]:
     """Run ``jobs`` as Ray tasks (one CPU each) on the cluster at ``address`` (None: start a local one).
 
     Every node must see the results directory at the same path (a shared file system), since each task
@@ -146,7 +153,7 @@ def run_ray(jobs: Sequence[Job], address: str | None, on_result: Callable[[JobRe
     ray = _import_ray()
     if not ray.is_initialized():
         ray.init(address=address, log_to_driver=False, include_dashboard=False)
-    remote = ray.remote(num_cpus=1, max_retries=0)(execute)
+    remote = ray.remote(num_cpus=1, max_retries=0)(execute_unit)
     pending = {remote.remote(job): job for job in jobs}
     results: list[JobResult] = []
     try:
@@ -154,11 +161,12 @@ def run_ray(jobs: Sequence[Job], address: str | None, on_result: Callable[[JobRe
             ready, _ = ray.wait(list(pending), num_returns=1)
             job = pending.pop(ready[0])
             try:
-                result = ray.get(ready[0])
+                done = ray.get(ready[0])
             except Exception as err:  # the task's worker died
-                result = JobResult(job.name, "failed", error=f"Ray task failed: {err!r}")
-            results.append(result)
-            on_result(result)
+                done = _all(job, "failed", f"Ray task failed: {err!r}")
+            for result in done:
+                results.append(result)
+                on_result(result)
     except KeyboardInterrupt:
         for ref in pending:
             ray.cancel(ref)

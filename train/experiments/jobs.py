@@ -53,6 +53,24 @@ class Job:
 
 
 @dataclass(frozen=True)
+class Pack:
+    """Several training jobs of one task trained by one packed trainer (`train.packing`)."""
+
+    jobs: tuple[Job, ...]
+
+    @property
+    def name(self) -> str:
+        """experiment/task/[condition, ...]."""
+        first = self.jobs[0]
+        return f"{first.experiment}/{first.task}/[{', '.join(j.condition for j in self.jobs)}]"
+
+    @property
+    def cost(self) -> float:
+        """Relative cost of the whole pack."""
+        return sum(j.cost for j in self.jobs)
+
+
+@dataclass(frozen=True)
 class JobResult:
     """What happened to a job."""
 
@@ -129,34 +147,107 @@ def execute(job: Job) -> JobResult:
         return JobResult(job.name, "failed", time.perf_counter() - began, why)
 
 
-def _run_training(job: Job) -> bool:
-    """Train (or resume) the job's run; write the done marker when it reached its budget."""
+def _open_run(job: Job):
+    """Lock the job's run directory (one writer per run: a concurrent sweep is refused) and say whether it
+    resumes; a run killed before its first checkpoint is cleared. Returns (RunDir, resume).
+    """
     from train.rundir import RunDir
-    from train.trainer import Trainer
 
-    run_dir = Path(job.run_dir)
-    cfg = TrainConfig.from_dict(job.config)
-    run = RunDir(run_dir)
-    run.lock()  # one writer per run directory, held until the trainer closes: a concurrent sweep is refused
+    run = RunDir(job.run_dir)
+    run.lock()
     try:
         resume = run.has_checkpoint()
         if not resume:
-            _clear_unstarted(run_dir)
+            _clear_unstarted(Path(job.run_dir))
     except BaseException:
         run.unlock()
         raise
+    return run, resume
+
+
+def _train(jobs: list[Job], opened: list) -> bool:
+    """Train ``jobs`` (one trainer; packed when several) from their opened run directories; write each done
+    marker when the runs reach their budget. Returns False when a signal stopped them (with checkpoints).
+    """
+    from train.trainer import Trainer
+
     began = time.perf_counter()
-    trainer = Trainer(cfg, run, resume=resume)
+    cfgs = [TrainConfig.from_dict(j.config) for j in jobs]
+    runs, resume = [o[0] for o in opened], [o[1] for o in opened]
+    trainer = Trainer(cfgs[0], runs[0], resume[0]) if len(jobs) == 1 else Trainer.packed(cfgs, runs, resume)
     try:
         trainer.run()
     finally:
         trainer.close()
     if trainer.epoch < trainer.cfg.num_epochs:
         return False  # stopped by a signal, with a checkpoint
-    marker = {"total_steps": trainer.cfg.total_steps, "seeds": trainer.cfg.run.seeds,
-              "seconds": round(time.perf_counter() - began, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
-    atomic_text(run_dir / DONE_FILE, json.dumps(marker, indent=2) + "\n")
+    for job, part in zip(jobs, trainer.parts):
+        marker = {"total_steps": part.cfg.total_steps, "seeds": part.cfg.run.seeds,
+                  "seconds": round(time.perf_counter() - began, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
+        if len(jobs) > 1:
+            marker["packed_with"] = [j.condition for j in jobs if j is not job]
+        atomic_text(Path(job.run_dir) / DONE_FILE, json.dumps(marker, indent=2) + "\n")
     return True
+
+
+def _run_training(job: Job) -> bool:
+    """Train (or resume) the job's run; write the done marker when it reached its budget."""
+    return _train([job], [_open_run(job)])
+
+
+def execute_pack(pack: Pack) -> list[JobResult]:
+    """Run a pack's jobs not yet done in packed trainers, one per step at which they stand (usually one).
+
+    Exceptions are returned as failed results of every job they stopped, not raised.
+    """
+    from train.rundir import RunDirError
+
+    began = time.perf_counter()
+    results, todo = [], []
+    for job in pack.jobs:
+        try:
+            done = job_is_done(job)
+        except Exception as err:  # e.g. a settings mismatch: this condition fails, the others run
+            results.append(JobResult(job.name, "failed", 0.0, " ".join(str(err).split())))
+            continue
+        if done:
+            results.append(JobResult(job.name, "skipped"))
+        else:
+            todo.append(job)
+    for group in _by_step(todo):
+        opened: list = []
+        try:
+            for job in group:
+                opened.append(_open_run(job))
+            finished = _train(group, opened)
+            status = "done" if finished else "interrupted"
+            results += [JobResult(j.name, status, time.perf_counter() - began) for j in group]
+        except Exception as err:
+            for run, _ in opened:
+                run.unlock()
+            why = " ".join(str(err).split()) if isinstance(err, RunDirError) else traceback.format_exc()
+            results += [JobResult(j.name, "failed", time.perf_counter() - began, why) for j in group]
+    return results
+
+
+def _by_step(jobs: list[Job]) -> list[list[Job]]:
+    """Jobs grouped by the step their checkpoint stands at (0 for a fresh run): one packed trainer each."""
+    from train.rundir import RunDir
+
+    groups: dict[int, list[Job]] = {}
+    for job in jobs:
+        try:
+            run = RunDir(job.run_dir)
+            step = run.saved_config()[1] if run.has_checkpoint() else 0
+        except Exception:  # an unreadable checkpoint: the job alone meets the error when it opens
+            step = -1 - len(groups)
+        groups.setdefault(step, []).append(job)
+    return list(groups.values())
+
+
+def execute_unit(unit: Job | Pack) -> list[JobResult]:
+    """`execute` of a job, or `execute_pack` of a pack: the results of every condition it holds."""
+    return execute_pack(unit) if isinstance(unit, Pack) else [execute(unit)]
 
 
 def _run_measurement(job: Job) -> bool:

@@ -30,7 +30,7 @@ from train.checkpoint import CHECKPOINT_NAME
 from train.config import TrainConfig
 from train.experiments.catalog import Experiment, job_config
 from train.experiments.executors import run_local, run_ray
-from train.experiments.jobs import Job, JobResult, job_is_done
+from train.experiments.jobs import Job, JobResult, Pack, job_is_done
 from train.fileio import atomic_text
 
 EXPERIMENT_FILE = "experiment.json"
@@ -42,8 +42,11 @@ EXPERIMENT_LOCK = ".experiment.lock"
 
 
 def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Sequence[str] | None = None,
-         seeds: int | None = None, steps: int | None = None, conditions: Sequence[str] | None = None) -> list[Job]:
-    """The jobs of ``experiment`` at a budget (optionally a task or condition subset, or other seeds/steps)."""
+         seeds: int | None = None, steps: int | None = None, conditions: Sequence[str] | None = None,
+         device: str | None = None) -> list[Job]:
+    """The jobs of ``experiment`` at a budget (optionally a task or condition subset, other seeds/steps, or
+    another device: a runtime setting, so runs move between devices freely).
+    """
     budget = experiment.budget(budget_name)
     if seeds is not None or steps is not None:
         budget = replace(budget, seeds=seeds or budget.seeds, steps=steps or budget.steps)
@@ -58,6 +61,7 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
                 jobs.append(Job(experiment.name, task, cond.name, run_dir, config, budget.seeds * n_steps / 20))
             else:
                 cfg = job_config(experiment, task, cond, budget)
+                cfg = cfg.replace(device=device) if device else cfg
                 jobs.append(Job(experiment.name, task, cond.name, run_dir, cfg.to_dict(),
                                 cfg.run.seeds * cfg.total_steps * (10 if task == "foodcollector" else 1)))
     return jobs
@@ -102,13 +106,33 @@ def _read_json(path: Path) -> dict[str, Any]:
     return data if isinstance(data, dict) else {}
 
 
+def pack_jobs(jobs: Sequence[Job], workers: int = 1) -> list[Job | Pack]:
+    """The training jobs grouped into packs of conditions that one trainer can train together
+    (`train.packing`), each group split into up to ``workers`` packs of about equal size so that every
+    worker process gets one (a pack of one stays a job); measurements stay single.
+    """
+    from train.packing import group_packable
+
+    training = [j for j in jobs if not j.is_measurement]
+    units: list[Job | Pack] = [j for j in jobs if j.is_measurement]
+    for group in group_packable([TrainConfig.from_dict(j.config) for j in training]):
+        parts = min(max(workers, 1), len(group))
+        for chunk in (group[i::parts] for i in range(parts)):
+            members = tuple(training[i] for i in chunk)
+            units.append(members[0] if len(members) == 1 else Pack(members))
+    return units
+
+
 def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None = None,
-             address: str | None = None, progress: bool = True) -> list[JobResult]:
-    """Run every job not yet done (longest first), with a progress bar over conditions."""
+             address: str | None = None, progress: bool = True, pack: int = 0) -> list[JobResult]:
+    """Run every job not yet done (longest first), with a progress bar over conditions; ``pack`` > 0: the
+    conditions of a task that can share a trainer train packed, in up to ``pack`` processes (`pack_jobs`).
+    """
     from tqdm import tqdm
 
     done_before = [j for j in jobs if _safe_is_done(j)]
-    todo = sorted((j for j in jobs if j not in done_before), key=lambda j: -j.cost)
+    todo = [j for j in jobs if j not in done_before]
+    todo = sorted(pack_jobs(todo, pack) if pack else todo, key=lambda j: -j.cost)
     bar = tqdm(total=len(jobs), initial=len(done_before), unit="run", desc="conditions", disable=not progress,
                dynamic_ncols=True)
     results = [JobResult(j.name, "skipped") for j in done_before]

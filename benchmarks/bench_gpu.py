@@ -1,0 +1,97 @@
+"""The trainer on a GPU: CPU/CUDA parity first, then training speed at K seeds in one process, CPU vs CUDA.
+
+    python benchmarks/bench_gpu.py                      # parity, then K = 10, 40, 330 on cpu and cuda
+    python benchmarks/bench_gpu.py --ks 10 40 --epochs 4
+
+Parity: the same seeds trained one epoch on the CPU and on the GPU (TF32 off) must give online weights
+within 1e-5 (relative to the largest weight). Speed: aggregate agent-steps per second (K seeds x environment
+steps, each step with its gradient step) of the salad trainer, timed over whole epochs after one untimed
+epoch, the CPU with one torch thread. Without CUDA it says so and times the CPU only. Absolute rates move
+between runs and machines; compare the CPU and CUDA columns of one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import sys
+import time
+from pathlib import Path
+
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from train.config import TrainConfig  # noqa: E402
+from train.trainer import Trainer  # noqa: E402
+
+BASE = TrainConfig().replace(task="salad", dynamism=0.1, reset_free=True, lr=3e-4, warmup_steps=500,
+                             buffer_size=50_000, eval_every=500_000, progress=False, threads=1)
+"""Salad, the experiments' settings; a smaller replay so K = 330 fits any host."""
+
+
+def parity(device: str) -> float:
+    """Largest |CPU - device| online weight after one epoch, relative to the largest weight."""
+    cfg = BASE.replace(seeds=4, updates_per_epoch=50)
+    trained = []
+    for where in ("cpu", device):
+        trainer = Trainer(cfg.replace(device=where))
+        trainer.train_epoch()
+        trained.append(trainer.agent.online.detach().cpu())
+        trainer.close()
+    return float((trained[0] - trained[1]).abs().max() / trained[0].abs().max())
+
+
+def rate(k: int, device: str, epochs: int) -> tuple[float, float]:
+    """(agent-steps per second, seconds of the first, untimed epoch) of K seeds on ``device``."""
+    trainer = Trainer(BASE.replace(seeds=k, device=device))
+    began = time.perf_counter()
+    trainer.train_epoch()  # the warm-up and one epoch: allocation, first kernels
+    first = time.perf_counter() - began
+    _sync(device)
+    began = time.perf_counter()
+    steps = trainer.step
+    for _ in range(epochs):
+        trainer.train_epoch()
+    _sync(device)
+    seconds = time.perf_counter() - began
+    done = (trainer.step - steps) * k
+    trainer.close()
+    return done / seconds, first
+
+
+def _sync(device: str) -> None:
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+
+
+def main() -> None:
+    """Parity, then the table."""
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--ks", type=int, nargs="+", default=[10, 40, 330], help="seeds trained together")
+    parser.add_argument("--epochs", type=int, default=3, help="timed epochs of 500 steps per K and device")
+    args = parser.parse_args()
+    devices = ["cpu"]
+    if torch.cuda.is_available():
+        torch.backends.cuda.matmul.allow_tf32 = False
+        torch.backends.cudnn.allow_tf32 = False
+        error = parity("cuda")
+        print(f"parity CPU vs CUDA after one epoch: max relative weight difference {error:.2e} "
+              f"({'ok' if error <= 1e-5 else 'FAILED: above 1e-5'})")
+        devices.append("cuda")
+    else:
+        print(f"no CUDA device here (torch {torch.__version__}): timing the CPU trainer only")
+    print(f"{'K':>5s} " + " ".join(f"{d + ' agent-steps/s':>22s} {d + ' first epoch s':>18s}" for d in devices))
+    for k in args.ks:
+        cells = []
+        for device in devices:
+            steps_per_s, first = rate(k, device, args.epochs)
+            cells.append(f"{steps_per_s:>22,.0f} {first:>18.1f}")
+        print(f"{k:>5d} " + " ".join(cells), flush=True)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    gpu = f", GPU peak {torch.cuda.max_memory_allocated() / 2**20:.0f} MiB" if "cuda" in devices else ""
+    print(f"peak RSS {peak:.0f} MiB{gpu}; CUDA graphs are not used yet (eager kernels)")
+
+
+if __name__ == "__main__":
+    main()

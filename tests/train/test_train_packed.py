@@ -1,0 +1,99 @@
+"""Packed runs: several conditions of a task in one trainer equal the same conditions trained apart."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from run_metrics import metrics_without_timing
+
+from train.agent.learner import DQNLearner, Learner, RowSettings
+from train.config import TrainConfig
+from train.experiments.catalog import get_experiment
+from train.experiments.jobs import Pack, execute, execute_pack
+from train.experiments.sweep import pack_jobs, plan
+from train.packing import check_packable, group_packable
+from train.trainer import Trainer
+
+TINY = TrainConfig().replace(task="salad", dynamism=0.1, eps_start=0.3, warmup_steps=200, epoch_steps=100,
+                             updates_per_epoch=30, buffer_size=2_000, eval_every=100, eval_rollouts=4,
+                             eval_horizon=20, steps=500, checkpoint_every=200, progress=False)
+
+
+def test_the_salad_panel_packed_equals_its_conditions_run_apart(tmp_path):
+    exp = get_experiment("headline-waypoint")
+    apart = plan(exp, "smoke", tmp_path / "apart")
+    together = plan(exp, "smoke", tmp_path / "packed")
+    units = pack_jobs(together)  # one worker: one pack
+    assert len(units) == 1 and isinstance(units[0], Pack) and len(units[0].jobs) == 4  # one process for all four
+    for job in apart:
+        assert execute(job).status == "done"
+    assert [r.status for r in execute_pack(units[0])] == ["done"] * 4
+    for a, b in zip(apart, together):
+        assert metrics_without_timing(tmp_path / "packed" / exp.name / "salad" / b.condition) == \
+            metrics_without_timing(tmp_path / "apart" / exp.name / "salad" / a.condition)
+    assert [r.status for r in execute_pack(units[0])] == ["skipped"] * 4  # done conditions are skipped
+
+
+def _trained(cfgs: list[TrainConfig], epochs: int = 3) -> Trainer:
+    trainer = Trainer.packed(cfgs, [None] * len(cfgs), [False] * len(cfgs))
+    for _ in range(epochs):
+        trainer.train_epoch()
+    return trainer
+
+
+def test_rows_with_their_own_rate_epsilon_and_rnd_follow_their_separate_runs():
+    a = TINY.replace(seeds=2, lr=3e-4)
+    b = TINY.replace(seeds=1, first_seed=5, lr=1e-4, reset_free=True, eps_start=0.6, rnd=True)
+    packed = _trained([a, b])
+    for cfg, rows in ((a, slice(0, 2)), (b, slice(2, 3))):
+        alone = _trained([cfg])
+        assert np.array_equal(alone.replay.obs, packed.replay.obs[rows])  # the same experience, exactly
+        assert torch.allclose(alone.agent.online, packed.agent.online[rows], rtol=1e-4, atol=1e-6)
+        assert torch.allclose(alone.agent.adam.state_dict()["exp_avg_sq"],
+                              packed.agent.adam.state_dict()["exp_avg_sq"][rows], rtol=1e-3, atol=1e-12)
+    assert packed.learner.rnd is not None and packed.learner.rnd.predictor.shape[0] == 1  # RND only where asked
+
+
+def test_a_packed_checkpoint_resumes_alone_to_the_same_run(tmp_path):
+    a, b = TINY.replace(seeds=2), TINY.replace(seeds=2, reset_free=True)
+    Trainer(b, tmp_path / "reference").run()
+    first = Trainer.packed([a.replace(steps=300), b.replace(steps=300)], [tmp_path / "a", tmp_path / "b"],
+                           [False, False])
+    first.run()
+    first.close()
+    resumed = Trainer(b, tmp_path / "b", resume=True)  # the packed run's checkpoint, continued on its own
+    assert resumed.step == 300
+    resumed.run()
+    resumed.close()
+    assert metrics_without_timing(tmp_path / "b") == metrics_without_timing(tmp_path / "reference")
+
+
+def test_conditions_that_cannot_share_a_trainer_are_refused_and_kept_apart():
+    with pytest.raises(ValueError, match="differ in dqn.batch_size"):
+        check_packable([TINY, TINY.replace(batch_size=32)])
+    cfgs = [TINY, TINY.replace(dynamism=0.5, lr=1e-3), TINY.replace(batch_size=32), TINY.replace(task="hunting")]
+    assert group_packable(cfgs) == [[0, 1], [2], [3]]
+
+
+def test_the_double_dqn_learner_is_a_learner():
+    row = RowSettings(0, TINY.dqn, TINY.rnd)
+    learner = DQNLearner([row, RowSettings(1, TINY.dqn, TINY.rnd)], obs_dim=130, view_dim=125, num_actions=7,
+                         binary_obs=True)
+    assert isinstance(learner, Learner) and learner.num_agents == 2 and learner.device.type == "cpu"
+    assert learner.steps_to_collect(0) == 300 and learner.steps_to_collect(300) == 100
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="this machine has CUDA")
+def test_cuda_without_cuda_is_a_one_line_error(cli):
+    for args in (["train", "salad", "--device", "cuda", "--steps", "300"],
+                 ["run", "headline", "--budget", "smoke", "--device", "cuda", "--dry-run"]):
+        proc = cli(*args, check=False)
+        assert proc.returncode == 2 and "no CUDA device" in proc.stderr and "use --device cpu" in proc.stderr
+        assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_packs_spread_over_the_worker_processes(tmp_path):
+    jobs = plan(get_experiment("headline-waypoint"), "smoke", tmp_path)
+    assert sorted(len(u.jobs) for u in pack_jobs(jobs, workers=2)) == [2, 2]
+    assert len(pack_jobs(jobs, workers=8)) == 4 and not any(isinstance(u, Pack) for u in pack_jobs(jobs, 8))
