@@ -72,10 +72,14 @@ class Policy:
         """The task the policy was trained on."""
         return self.cfg.env.task
 
+    def q_values(self, obs: torch.Tensor) -> torch.Tensor:
+        """Q-values (1, N, actions) of observations (1, N, obs_dim), as `DoubleDQN.q_values` for one agent."""
+        with torch.no_grad():
+            return self._net.forward(self._bound, obs)[0]
+
     def greedy(self, obs: torch.Tensor) -> np.ndarray:
         """Greedy actions (1, N) of observations (1, N, obs_dim), as `DoubleDQN.greedy` for one agent."""
-        with torch.no_grad():
-            return self._net.forward(self._bound, obs)[0].argmax(-1).numpy()
+        return self.q_values(obs).argmax(-1).numpy()
 
     def act(self, obs: np.ndarray) -> int:
         """The greedy action for one observation."""

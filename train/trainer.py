@@ -202,7 +202,7 @@ class Trainer:
         for k, seed in enumerate(self.seeds):
             rows.append({
                 "step": self.step, "seed": seed, "epsilon": self.cfg.dqn.epsilon(self.step),
-                "loss": losses[k] if self.loss_count else math.nan,
+                "loss": losses[k] if self.loss_count else math.nan, "max_q": float(result.max_q[k]),
                 "success": float(result.success[k]) if self.task.metric == "success" else math.nan,
                 "return": float(result.returns[k]), "train_reward": float(self.train_reward[k]),
                 "steps_per_s": rate,

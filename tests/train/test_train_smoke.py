@@ -41,6 +41,7 @@ def test_task_trains_end_to_end(task, tmp_path):
     assert [r["step"] for r in rows] == [1200, 1200, 2200, 2200]
     for row in rows:
         assert math.isfinite(row["loss"]) and math.isfinite(row["return"])
+        assert 0.0 < row["max_q"] < 1e4  # the divergence gauge of every evaluation
         assert 0.0 <= row["success"] <= 1.0 if TASKS[task].metric == "success" else math.isnan(row["success"])
     with open(tmp_path / "metrics.csv") as f:
         assert len(list(csv.DictReader(f))) == 4
