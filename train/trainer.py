@@ -145,7 +145,7 @@ class Trainer:
         stored = ~self.autoreset  # worlds whose previous step ended only reset now
         encoded = self.replay.encode(self.obs)
         obs, reward, terminated, truncated, info = self.env.step(actions)
-        self.replay.add(stored, encoded, actions, reward, terminated)
+        self.replay.add(stored, encoded, actions, reward, terminated | (truncated & self.cfg.dqn.timeouts_terminal))
         ended = (terminated | truncated) & stored
         if ended.any():  # the final observation gets its own slot: it is the last transition's next state
             self.replay.add(ended, self.replay.encode(obs))
