@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import zipfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -85,12 +86,16 @@ class Policy:
         """The greedy action for one observation."""
         return int(self.greedy(torch.from_numpy(np.asarray(obs, dtype=np.float32)).view(1, 1, -1))[0, 0])
 
-    def evaluate(self, rollouts: int = 100, epsilon: float | None = None) -> EvalResult:
+    def evaluate(self, rollouts: int = 100, epsilon: float | None = None, horizon: int | None = None,
+                 layout_seeds: Sequence[int] | None = None) -> EvalResult:
         """Success and return on the first ``rollouts`` validation layouts of the test MDP (the paper's
-        protocol: epsilon-greedy with the run's evaluation epsilon unless ``epsilon`` is given).
+        protocol: epsilon-greedy with the run's evaluation epsilon unless ``epsilon`` is given); ``horizon``
+        replaces the run's evaluation horizon, ``layout_seeds`` the validation layouts (one per rollout).
         """
         eps = self.cfg.eval.eval_epsilon if epsilon is None else epsilon
-        evaluator = Evaluator(get_task(self.task).env_id, self.test_kwargs, 1, rollouts, eps, self._info.num_actions)
+        kwargs = self.test_kwargs if horizon is None else evaluation_kwargs(self._info.test_kwargs, horizon)
+        evaluator = Evaluator(get_task(self.task).env_id, kwargs, 1, rollouts, eps, self._info.num_actions,
+                              layout_seeds)
         try:
             return evaluator(self, [self.seed], step=0)
         finally:
