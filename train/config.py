@@ -149,6 +149,9 @@ class DQNConfig:
     """Target network start: its own random init ('independent', as the original) or a copy of the online one."""
     float_obs_dtype: str = field(default="float16", metadata={"choices": ("float16", "float32")})
     """Replay storage of real-valued observations (binary grid observations are always bit-packed)."""
+    timeouts_terminal: bool = False
+    """Store an episode cut by the time limit as terminal, so its last transition does not bootstrap (the
+    original code's episodic rule); off: only a task's own end is terminal."""
 
     def __post_init__(self) -> None:
         check_number("lr", self.lr, 0.0, low_open=True)

@@ -9,14 +9,15 @@ evaluating never touches the training streams and a resumed run evaluates identi
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import torch
 
 from ecology import validation_seeds
-from train.agent.dqn import DoubleDQN
 from train.tasks import make_vector_env
 
 EVAL_STREAM = 0xE7A1
@@ -28,6 +29,13 @@ def evaluation_kwargs(test_kwargs: dict, eval_horizon: int | None) -> dict:
     return {**test_kwargs, "horizon": eval_horizon or test_kwargs["horizon"]}
 
 
+class ActionValues(Protocol):
+    """What evaluation needs of a policy: K agents' action values (a `Learner`, a `DoubleDQN` or a `Policy`)."""
+
+    def q_values(self, obs: torch.Tensor) -> torch.Tensor:
+        """Action values (K, N, actions) on the CPU of observations (K, N, obs_dim)."""
+
+
 @dataclass(frozen=True)
 class EvalResult:
     """Per-agent evaluation results."""
@@ -36,20 +44,29 @@ class EvalResult:
     """(K,) fraction of rollouts solved."""
     returns: np.ndarray
     """(K,) mean undiscounted return per rollout."""
+    max_q: np.ndarray
+    """(K,) largest |Q| of any action in any state the rollouts visited (NaN if a value is not finite): a
+    divergence gauge, see `train.experiments.report.stats.diverged`."""
+    solved: np.ndarray
+    """(K, R) whether each rollout was solved."""
 
 
 class Evaluator:
     """Runs the validation rollouts of every agent in one batched environment (built once, reused)."""
 
     def __init__(self, env_id: str, test_kwargs: dict, num_agents: int, rollouts: int, epsilon: float,
-                 num_actions: int) -> None:
+                 num_actions: int, layout_seeds: Sequence[int] | None = None) -> None:
+        """``layout_seeds``: the R layouts' reset seeds (default: the first ``rollouts`` validation layouts)."""
+        seeds = validation_seeds(rollouts) if layout_seeds is None else [int(s) for s in layout_seeds]
+        if len(seeds) != rollouts:
+            raise ValueError(f"{len(seeds)} layout seeds given for {rollouts} rollouts; give one per rollout")
         self.num_agents, self.rollouts = num_agents, rollouts
         self.epsilon, self.num_actions = epsilon, num_actions
         self.horizon = int(test_kwargs["horizon"])
-        self.layout_seeds = validation_seeds(rollouts) * num_agents
+        self.layout_seeds = seeds * num_agents
         self.env = make_vector_env(env_id, num_agents * rollouts, test_kwargs)
 
-    def __call__(self, agent: DoubleDQN, agent_seeds: Sequence[int], step: int) -> EvalResult:
+    def __call__(self, agent: ActionValues, agent_seeds: Sequence[int], step: int) -> EvalResult:
         """Evaluate every agent's current policy; ``step`` seeds the exploration draws."""
         k, r = self.num_agents, self.rollouts
         rngs = [np.random.default_rng(np.random.SeedSequence(s, spawn_key=(EVAL_STREAM, step)))
@@ -58,21 +75,30 @@ class Evaluator:
         live = np.ones(k * r, dtype=bool)
         solved = np.zeros(k * r, dtype=bool)
         returns = np.zeros(k * r)
+        max_q = torch.zeros(k)
         for _ in range(self.horizon):
-            actions = self._actions(agent, obs, rngs)
+            actions = self._actions(agent, obs, rngs, max_q)
             obs, reward, terminated, truncated, info = self.env.step(actions)
             returns += np.where(live, reward, 0.0)
             solved |= live & np.asarray(info.get("solved", np.zeros(k * r, dtype=bool)), dtype=bool)
             live &= ~(terminated | truncated)
             if not live.any():
                 break
-        return EvalResult(solved.reshape(k, r).mean(1), returns.reshape(k, r).mean(1))
+        solved = solved.reshape(k, r)
+        return EvalResult(solved.mean(1), returns.reshape(k, r).mean(1), max_q.numpy().astype(np.float64), solved)
 
-    def _actions(self, agent: DoubleDQN, obs: np.ndarray, rngs: Sequence[np.random.Generator]) -> np.ndarray:
-        """Epsilon-greedy actions of every world (agent k plays worlds k*R ... k*R + R - 1)."""
+    def _actions(self, agent: ActionValues, obs: np.ndarray, rngs: Sequence[np.random.Generator],
+                 max_q: torch.Tensor) -> np.ndarray:
+        """Epsilon-greedy actions of every world (agent k plays worlds k*R ... k*R + R - 1); raises each
+        agent's entry of ``max_q`` to the largest |Q| of this step (a non-finite value makes it NaN for good).
+        """
         k, r = self.num_agents, self.rollouts
         with torch.no_grad():
-            greedy = agent.greedy(torch.from_numpy(np.asarray(obs, dtype=np.float32)).view(k, r, -1))
+            q = agent.q_values(torch.from_numpy(np.asarray(obs, dtype=np.float32)).view(k, r, -1))
+            step_max = q.abs().amax(dim=(1, 2))
+            max_q.copy_(torch.where(torch.isfinite(step_max) & torch.isfinite(max_q),
+                                    torch.maximum(max_q, step_max), torch.full_like(max_q, math.nan)))
+            greedy = q.argmax(-1).numpy()
         draws = np.stack([rng.random((r, 2)) for rng in rngs])  # (K, R, [explore?, which action])
         random_actions = (draws[..., 1] * self.num_actions).astype(np.int64)
         return np.where(draws[..., 0] < self.epsilon, random_actions, greedy).reshape(-1)

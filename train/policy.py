@@ -12,6 +12,7 @@ from __future__ import annotations
 import csv
 import json
 import zipfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -72,21 +73,29 @@ class Policy:
         """The task the policy was trained on."""
         return self.cfg.env.task
 
+    def q_values(self, obs: torch.Tensor) -> torch.Tensor:
+        """Q-values (1, N, actions) of observations (1, N, obs_dim), as `DoubleDQN.q_values` for one agent."""
+        with torch.no_grad():
+            return self._net.forward(self._bound, obs)[0]
+
     def greedy(self, obs: torch.Tensor) -> np.ndarray:
         """Greedy actions (1, N) of observations (1, N, obs_dim), as `DoubleDQN.greedy` for one agent."""
-        with torch.no_grad():
-            return self._net.forward(self._bound, obs)[0].argmax(-1).numpy()
+        return self.q_values(obs).argmax(-1).numpy()
 
     def act(self, obs: np.ndarray) -> int:
         """The greedy action for one observation."""
         return int(self.greedy(torch.from_numpy(np.asarray(obs, dtype=np.float32)).view(1, 1, -1))[0, 0])
 
-    def evaluate(self, rollouts: int = 100, epsilon: float | None = None) -> EvalResult:
+    def evaluate(self, rollouts: int = 100, epsilon: float | None = None, horizon: int | None = None,
+                 layout_seeds: Sequence[int] | None = None) -> EvalResult:
         """Success and return on the first ``rollouts`` validation layouts of the test MDP (the paper's
-        protocol: epsilon-greedy with the run's evaluation epsilon unless ``epsilon`` is given).
+        protocol: epsilon-greedy with the run's evaluation epsilon unless ``epsilon`` is given); ``horizon``
+        replaces the run's evaluation horizon, ``layout_seeds`` the validation layouts (one per rollout).
         """
         eps = self.cfg.eval.eval_epsilon if epsilon is None else epsilon
-        evaluator = Evaluator(get_task(self.task).env_id, self.test_kwargs, 1, rollouts, eps, self._info.num_actions)
+        kwargs = self.test_kwargs if horizon is None else evaluation_kwargs(self._info.test_kwargs, horizon)
+        evaluator = Evaluator(get_task(self.task).env_id, kwargs, 1, rollouts, eps, self._info.num_actions,
+                              layout_seeds)
         try:
             return evaluator(self, [self.seed], step=0)
         finally:

@@ -30,9 +30,12 @@ from train.fileio import FileLock, LockedError, atomic_file, atomic_write, is_te
 
 __all__ = ["METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write", "check_same_run"]
 
-METRIC_COLUMNS = ("step", "seed", "epsilon", "loss", "success", "return", "train_reward", "steps_per_s")
-"""Columns of metrics.csv. ``return`` is the mean validation return; ``train_reward`` the summed training
-reward since the previous evaluation; ``steps_per_s`` environment steps per second per seed."""
+METRIC_COLUMNS = ("step", "seed", "epsilon", "loss", "max_q", "success", "return", "train_reward",
+                  "steps_per_s")
+"""Columns of metrics.csv. ``loss`` is the mean TD loss of the gradient steps since the previous evaluation;
+``max_q`` the largest |Q| the evaluation's forward passes produced (NaN if one was not finite; absent in
+files written before it existed); ``return`` is the mean validation return; ``train_reward`` the summed
+training reward since the previous evaluation; ``steps_per_s`` environment steps per second per seed."""
 
 LOCK_NAME = ".lock"
 """The lock file of a run directory (held by the one process that writes the run)."""

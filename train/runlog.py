@@ -82,7 +82,7 @@ class RunLogger:
         if self.writer is None:
             return
         rows = [r for r in metric_rows if r["step"] == step]
-        for key in ("success", "return", "loss", "epsilon", "train_reward", "steps_per_s"):
+        for key in ("success", "return", "loss", "max_q", "epsilon", "train_reward", "steps_per_s"):
             values = [r[key] for r in rows]
             if not any(math.isnan(v) for v in values):
                 self.writer.add_scalar(f"{key}/mean", float(np.mean(values)), step)

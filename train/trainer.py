@@ -253,7 +253,7 @@ class Trainer:
         out = []
         for part in self.parts:
             rows = [{"step": self.step, "seed": seed, "epsilon": part.cfg.dqn.epsilon(self.step),
-                     "loss": float(losses[k]),
+                     "loss": float(losses[k]), "max_q": float(result.max_q[k]),
                      "success": float(result.success[k]) if self.task.metric == "success" else math.nan,
                      "return": float(result.returns[k]), "train_reward": float(self.train_reward[k]),
                      "steps_per_s": rate}

@@ -27,6 +27,7 @@ REPO = Path(__file__).resolve().parents[2]
 SMOKE_TASKS = {
     "headline": None,
     "headline-waypoint": None,
+    "salad-gap": None,
     "episodic-vs-reset-free": None,
     "dynamism": ["foodcollector"],
     "dynamism-sweep": ["salad"],

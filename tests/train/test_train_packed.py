@@ -30,9 +30,22 @@ def test_the_salad_panel_packed_equals_its_conditions_run_apart(tmp_path):
         assert execute(job).status == "done"
     assert [r.status for r in execute_pack(units[0])] == ["done"] * 4
     for a, b in zip(apart, together):
-        assert metrics_without_timing(tmp_path / "packed" / exp.name / "salad" / b.condition) == \
-            metrics_without_timing(tmp_path / "apart" / exp.name / "salad" / a.condition)
+        _same_metrics(tmp_path / "packed" / exp.name / "salad" / b.condition,
+                      tmp_path / "apart" / exp.name / "salad" / a.condition)
     assert [r.status for r in execute_pack(units[0])] == ["skipped"] * 4  # done conditions are skipped
+
+
+ROUNDED = ("loss", "max_q")
+"""Columns computed by batched products, whose float rounding depends on how many rows share the product."""
+
+
+def _same_metrics(run, reference) -> None:
+    """The same metrics, exactly but for float rounding (1e-5 relative) in `ROUNDED`."""
+    rows, expected = metrics_without_timing(run), metrics_without_timing(reference)
+    assert [{k: v for k, v in r.items() if k not in ROUNDED} for r in rows] == \
+        [{k: v for k, v in r.items() if k not in ROUNDED} for r in expected]
+    for key in ROUNDED:
+        assert np.allclose([float(r[key]) for r in rows], [float(r[key]) for r in expected], rtol=1e-5, atol=1e-9)
 
 
 def _trained(cfgs: list[TrainConfig], epochs: int = 3) -> Trainer:
@@ -66,7 +79,7 @@ def test_a_packed_checkpoint_resumes_alone_to_the_same_run(tmp_path):
     assert resumed.step == 300
     resumed.run()
     resumed.close()
-    assert metrics_without_timing(tmp_path / "b") == metrics_without_timing(tmp_path / "reference")
+    _same_metrics(tmp_path / "b", tmp_path / "reference")
 
 
 def test_conditions_that_cannot_share_a_trainer_are_refused_and_kept_apart():

@@ -41,6 +41,7 @@ def test_task_trains_end_to_end(task, tmp_path):
     assert [r["step"] for r in rows] == [1200, 1200, 2200, 2200]
     for row in rows:
         assert math.isfinite(row["loss"]) and math.isfinite(row["return"])
+        assert 0.0 < row["max_q"] < 1e4  # the divergence gauge of every evaluation
         assert 0.0 <= row["success"] <= 1.0 if TASKS[task].metric == "success" else math.isnan(row["success"])
     with open(tmp_path / "metrics.csv") as f:
         assert len(list(csv.DictReader(f))) == 4
@@ -63,6 +64,22 @@ def test_episode_boundaries_are_not_terminals_on_truncation(tmp_path):
     rewards = trainer.replay.reward[0, finals - 1]
     # an episode that ended without a solve was truncated: stored as non-terminal; a solve terminates it
     assert np.all((before_final & 1).astype(bool) == (rewards >= 100))
+
+
+@pytest.mark.parametrize("timeouts_terminal", [False, True])
+def test_timeouts_are_stored_as_terminals_only_when_asked(timeouts_terminal):
+    cfg = TrainConfig().replace(task="salad", horizon=10, steps=700, updates_per_epoch=1, eval_every=500,
+                                eval_rollouts=2, eval_horizon=5, buffer_size=2_000, progress=False,
+                                timeouts_terminal=timeouts_terminal)
+    trainer = Trainer(cfg)
+    trainer.train_epoch()
+    flags = trainer.replay.flags[0, : trainer.replay.size[0]]
+    finals = np.flatnonzero((flags & 2) == 0)  # final-observation slots, one per finished episode
+    truncated = finals[trainer.replay.reward[0, finals - 1] < 100] - 1  # episodes that ran out of time
+    assert truncated.size >= 20
+    assert np.all((flags[truncated] & 1).astype(bool) == timeouts_terminal)
+    ordinary = np.setdiff1d(np.flatnonzero(flags & 2), finals - 1)  # every other transition
+    assert not (flags[ordinary] & 1).any()
 
 
 def test_tensorboard_logging_is_optional_and_lazy(tmp_path):

@@ -49,6 +49,9 @@ class Learner(Protocol):
     def act(self, obs: np.ndarray, step: int) -> np.ndarray:
         """Training actions (K,) for observations (K, obs_dim) at lifetime step ``step``."""
 
+    def q_values(self, obs: torch.Tensor) -> torch.Tensor:
+        """Action values (K, N, actions) on the CPU of observations (K, N, obs_dim) (evaluation, policies)."""
+
     def greedy(self, obs: torch.Tensor) -> np.ndarray:
         """Greedy actions (K, N) for observations (K, N, obs_dim) (evaluation and policies)."""
 
@@ -142,6 +145,10 @@ class DQNLearner:
             actions = np.where(explore, actions, greedy)
         return actions
 
+    def q_values(self, obs: torch.Tensor) -> torch.Tensor:
+        """Online action values (K, N, actions), on the CPU, of observations (K, N, obs_dim)."""
+        return self.agent.q_values(obs.to(self.device)).cpu()
+
     def greedy(self, obs: torch.Tensor) -> np.ndarray:
         """Greedy actions (K, N) of observations (K, N, obs_dim)."""
         return self.agent.greedy(obs)
@@ -153,7 +160,8 @@ class DQNLearner:
         """Store the transitions of the rows where ``stored``; an episode's final observation gets its own
         slot, as the last transition's next state.
         """
-        self.replay.add(stored, self.replay.encode(obs), actions, reward, terminated)
+        ends = terminated | (truncated & self.cfg.timeouts_terminal)  # the original's episodic rule, if asked
+        self.replay.add(stored, self.replay.encode(obs), actions, reward, ends)
         ended = (terminated | truncated) & stored
         if ended.any():
             self.replay.add(ended, self.replay.encode(next_obs))

@@ -21,6 +21,16 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--rollouts", type=positive, default=100, help="validation layouts (default: 100)")
     parser.add_argument("--epsilon", type=probability, default=None,
                         help="exploration during evaluation (default: the run's, 0.1 in the paper)")
+    grid = parser.add_argument_group(
+        "evaluation grid", "any of these options tabulates success at every (layouts, horizon, epsilon), split by "
+        "whether an object needed first (salad: an ingredient) is in the first view")
+    grid.add_argument("--epsilons", type=probability, nargs="+", metavar="E",
+                      help="e.g. 0 0.1 0.3 (default: --epsilon)")
+    grid.add_argument("--horizons", type=positive, nargs="+", metavar="H", help="e.g. 100 400 (default: the run's)")
+    grid.add_argument("--fresh", type=int, default=None, metavar="N",
+                      help="also N fresh test-MDP layouts (seeds 2 000 000 000 + i), beside --rollouts validation ones")
+    grid.add_argument("--no-split", action="store_true", help="do not split by the first view (any task)")
+    grid.add_argument("--out", type=Path, default=None, help="also write the grid as CSV to this file")
     parser.set_defaults(handler=handle)
     return parser
 
@@ -31,6 +41,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
     with user_errors(ValueError, OSError, RunDirError):
         policy = load_policy(args.policy, args.agent)
+        if any(x is not None for x in (args.epsilons, args.horizons, args.fresh, args.out)) or args.no_split:
+            return handle_grid(args, policy)
         results = {"policy": policy.evaluate(args.rollouts, args.epsilon),
                    "random": policy.evaluate(args.rollouts, epsilon=1.0)}
     eps = policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon
@@ -38,4 +50,26 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     for name, r in results.items():
         how = f"epsilon {eps:g}" if name == "policy" else "uniform random"
         print(f"  {name:>6s} ({how}): success {100 * r.success[0]:.0f} %, mean return {r.returns[0]:.1f}")
+    return 0
+
+
+def handle_grid(args: argparse.Namespace, policy) -> int:
+    """Print (and with --out write as CSV) the policy's evaluation grid."""
+    import csv
+
+    from train.evalgrid import GRID_COLUMNS, evaluate_grid, format_grid
+
+    if args.fresh is not None and args.fresh < 0:
+        raise ValueError(f"--fresh must be 0 or more layouts, got {args.fresh}")
+    eps = args.epsilons or [policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon]
+    horizons = args.horizons or [int(policy.test_kwargs["horizon"])]
+    rows = evaluate_grid(policy, eps, horizons, args.rollouts, args.fresh or 0, split=not args.no_split)
+    print(f"{policy.task}, {policy.meta.get('source', args.policy)} (seed {policy.seed}):")
+    print("\n".join(format_grid(rows)))
+    if args.out is not None:
+        with open(args.out, "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=GRID_COLUMNS, lineterminator="\n")
+            writer.writeheader()
+            writer.writerows(rows)
+        print(f"wrote {args.out}")
     return 0

@@ -45,16 +45,16 @@ Choices the paper leaves open, and where the values come from:
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
 
 from train.config import TrainConfig
+from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
 from train.tasks import TASKS
 
-BUDGETS = ("smoke", "quick", "paper")
-"""Budget names, cheapest first."""
+__all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "SHAPING_BASE",
+           "SHAPING_SCHEDULE", "SMOKE", "TUNED", "Budget", "Condition", "Experiment", "get_experiment", "job_config"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -87,115 +87,6 @@ SHAPING_BASE = MappingProxyType({
 PAPER_STEPS = MappingProxyType({"salad": 1_000_000, "hunting": 1_500_000, "scavenging": 1_250_000,
                                 "factory": 1_250_000, "walled-salad": 1_000_000, "foodcollector": 1_000_000})
 """Steps per seed of the dynamism experiments (original: 2 000 / 3 000 / 2 500 epochs of 500 steps)."""
-
-@dataclass(frozen=True)
-class Condition:
-    """One training condition of a task: a directory name, a legend label and its config overrides."""
-
-    name: str
-    """Directory name (no spaces), e.g. 'dynamic-reset-free'."""
-    label: str
-    """Legend label in plots and tables."""
-    overrides: Mapping[str, Any] = field(default_factory=dict)
-    """Flat `TrainConfig.replace` overrides (env knobs, reward, rnd, env_kwargs ...)."""
-    measure: str | None = None
-    """For measurement experiments: 'hitting-time' or 'entropy' (no training)."""
-
-
-@dataclass(frozen=True)
-class Budget:
-    """Seeds, steps and evaluation of every condition of an experiment."""
-
-    seeds: int
-    """Seeds per condition (trained together in one process)."""
-    steps: int | Mapping[str, int]
-    """Environment steps per seed: one number, or one per task."""
-    eval_every: int
-    """Evaluate every this many steps (a multiple of 500)."""
-    eval_rollouts: int | None = None
-    """Validation rollouts per seed (None: the task's 100 layouts; food collector 10 episodes)."""
-    overrides: Mapping[str, Any] = field(default_factory=dict)
-    """Extra flat overrides for every task (e.g. checkpoint_every)."""
-    task_overrides: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
-    """Extra flat overrides for one task only."""
-
-    def steps_for(self, task: str) -> int:
-        """Steps per seed for ``task``."""
-        return int(self.steps[task] if isinstance(self.steps, Mapping) else self.steps)
-
-
-@dataclass(frozen=True)
-class Experiment:
-    """A figure or table of the paper as runs: conditions per task, three budgets."""
-
-    name: str
-    paper: str
-    """Where in the paper, e.g. 'Fig. 4'."""
-    title: str
-    description: str
-    conditions: Mapping[str, tuple[Condition, ...]]
-    """Task -> its conditions (tasks in the paper's panel order)."""
-    paper_steps: Mapping[str, int]
-    """Task -> steps per seed of the paper budget."""
-    paper_seeds: int
-    budgets: Mapping[str, Budget]
-    """'smoke' and 'quick' budgets ('paper' is derived from paper_steps and paper_seeds)."""
-    heatmaps: bool = False
-    """Plot visitation heat-maps at four points of training."""
-    videos: bool = False
-    """The report renders a rollout video of each condition's final policy."""
-    milestones: tuple[int, ...] = ()
-    """Steps at which the report tabulates every condition (mean, CI, seeds learned) besides the last one."""
-
-    @property
-    def tasks(self) -> tuple[str, ...]:
-        """The experiment's tasks, in panel order."""
-        return tuple(self.conditions)
-
-    @property
-    def is_measurement(self) -> bool:
-        """True for the Table 1 measurements (random policy, no training)."""
-        return any(c.measure for conds in self.conditions.values() for c in conds)
-
-    def budget(self, name: str) -> Budget:
-        """The budget called ``name`` (one of `BUDGETS`)."""
-        if name == "paper":
-            return Budget(self.paper_seeds, dict(self.paper_steps), eval_every=5_000)
-        if name not in self.budgets:
-            raise ValueError(f"unknown budget {name!r}; choose one of {', '.join(BUDGETS)}")
-        return self.budgets[name]
-
-    def select_tasks(self, tasks: list[str] | tuple[str, ...] | None) -> tuple[str, ...]:
-        """The requested subset of tasks (all when None), validated, in panel order."""
-        if not tasks:
-            return self.tasks
-        unknown = [t for t in tasks if t not in self.conditions]
-        if unknown:
-            raise ValueError(f"experiment {self.name!r} has no task(s) {', '.join(unknown)}; "
-                             f"its tasks are: {', '.join(self.tasks)}")
-        return tuple(t for t in self.tasks if t in tasks)
-
-    def select_conditions(self, task: str, names: Sequence[str] | None) -> list[Condition]:
-        """The task's conditions named in ``names`` (all when None), validated, in panel order."""
-        if not names:
-            return list(self.conditions[task])
-        known = [c.name for c in self.conditions[task]]
-        unknown = [n for n in names if n not in known]
-        if unknown:
-            raise ValueError(f"experiment {self.name!r} has no condition(s) {', '.join(unknown)} for task "
-                             f"{task!r}; its conditions are: {', '.join(known)}")
-        return [c for c in self.conditions[task] if c.name in names]
-
-    def describe(self) -> dict[str, Any]:
-        """A JSON-friendly summary (written next to the runs, read back by the report)."""
-        return {
-            "name": self.name, "paper": self.paper, "title": self.title, "description": self.description,
-            "heatmaps": self.heatmaps, "videos": self.videos, "measurement": self.is_measurement,
-            "milestones": list(self.milestones),
-            "tasks": {task: [{"name": c.name, "label": c.label, "overrides": dict(c.overrides),
-                              "measure": c.measure} for c in conds]
-                      for task, conds in self.conditions.items()},
-        }
 
 
 # ---- building configs ----------------------------------------------------------------------------------
@@ -296,6 +187,27 @@ def _settings_conditions() -> tuple[Condition, ...]:
     )
 
 
+def _gap_conditions() -> tuple[Condition, ...]:
+    """Issue 18's arms: the waypoint arms of the settings study (episodic H 100, non-episodic; lr 3e-4), each
+    with one more setting of the released code changed.
+
+    The baselines are the settings study's ``ep-h100-waypoint`` and ``rf-waypoint``. Timeouts as terminals
+    only exist episodically (a non-episodic world is never cut by a time limit).
+    """
+    p = DYNAMIC_P["salad"]
+    ep = {"dynamism": p, "reset_free": False, "lr": SETTINGS_LR, "horizon": 100, "reward": "waypoint"}
+    rf = {"dynamism": p, "reset_free": True, "lr": SETTINGS_LR, "reward": "waypoint"}
+    one = {"env_kwargs": {"initial_count": 1}}
+    return (
+        Condition("ep-init1", "episodic H 100, waypoint, 1 of each ingredient (released sweep's 1/1)", {**ep, **one}),
+        Condition("ep-lr1e-4", "episodic H 100, waypoint, lr 1e-4", {**ep, "lr": 1e-4}),
+        Condition("ep-timeouts", "episodic H 100, waypoint, timeouts stored as terminals (released loop)",
+                  {**ep, "timeouts_terminal": True}),
+        Condition("rf-init1", "non-episodic, waypoint, 1 of each ingredient (released sweep's 1/1)", {**rf, **one}),
+        Condition("rf-lr1e-4", "non-episodic, waypoint, lr 1e-4", {**rf, "lr": 1e-4}),
+    )
+
+
 def _salad_experiments() -> list[Experiment]:
     """The salad-only experiments: the headline, the settings study and Fig. 2."""
     salad_dyn = _dynamism_conditions("salad")
@@ -322,6 +234,15 @@ def _salad_experiments() -> list[Experiment]:
             "paper's text and the released code disagree (reward, learning rate, batch size, episodic "
             "horizon). Its paper budget is the study's: 10 seeds x 500 000 steps per arm.",
             {"salad": _settings_conditions()}, {"salad": 500_000}, 10,
+            {"smoke": SMOKE, "quick": _quick(3, 120_000)}, milestones=(250_000, 500_000)),
+        Experiment(
+            "salad-gap", "Fig. 4 (salad), the rest of the gap", "Why learned salad seeds plateau below the paper",
+            "Issue 18's arms around the settings study's waypoint arms (dynamic salad p = 0.1, lr 3e-4; baselines "
+            "'ep-h100-waypoint' and 'rf-waypoint' of 'settings'): one ingredient of each kind in training (the "
+            "released script also sweeps 1/1), lr 1e-4 (no seed diverged at it), and, episodic only, timeouts "
+            "stored as terminals (the original's rule). Its paper budget is the study's: 10 seeds x 500 000 "
+            "steps per arm.",
+            {"salad": _gap_conditions()}, {"salad": 500_000}, 10,
             {"smoke": SMOKE, "quick": _quick(3, 120_000)}, milestones=(250_000, 500_000)),
         Experiment(
             "episodic-vs-reset-free", "Fig. 2", "Episodic vs non-episodic learning (static salad)",

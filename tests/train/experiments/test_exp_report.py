@@ -45,14 +45,15 @@ def test_paper_values_and_their_marks():
     assert not any("RND" in c["text"] for c in paper["dynamism-sweep"]["claims"])
 
 
-def _fake_run(run_dir, seeds, steps, success, grid=(8, 8)):
+def _fake_run(run_dir, seeds, steps, success, grid=(8, 8), loss=lambda i, k: 1.0, max_q=lambda i, k: 50.0,
+              columns=METRIC_COLUMNS):
     run_dir.mkdir(parents=True)
     with open(run_dir / "metrics.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=METRIC_COLUMNS)
+        writer = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         for i, step in enumerate(steps):
             for k in range(seeds):
-                writer.writerow({"step": step, "seed": k, "epsilon": 0.1, "loss": 1.0,
+                writer.writerow({"step": step, "seed": k, "epsilon": 0.1, "loss": loss(i, k), "max_q": max_q(i, k),
                                  "success": success(i, k), "return": 0.0, "train_reward": 0.0, "steps_per_s": 1.0})
     (run_dir / "visits").mkdir()
     for i, step in enumerate(steps):
@@ -75,8 +76,9 @@ def test_report_on_synthetic_runs(tmp_path):
     assert names == ["episodic-vs-reset-free_curves.png", "episodic-vs-reset-free_salad_heatmaps.png",
                      "index.html", "report.md"]
     md = (root / "report.md").read_text()
-    assert "| salad | static, episodic | 10.0% [" in md and "| 0 / 3 | 3 | 50000 | ≈ 12% (Fig. 2) |" in md
-    assert "| salad | static, non-episodic | 0.0% [0.0, 0.0] | 0 / 3 | 3 | 20000 | ≈ 0% (Fig. 2) |" in md
+    assert "| salad | static, episodic | 10.0% [" in md and "| 0 / 3 | 0 / 3 | 3 | 50000 | ≈ 12% (Fig. 2) |" in md
+    assert "| salad | static, non-episodic | 0.0% [0.0, 0.0] | 0 / 3 | 0 / 3 | 3 | 20000 | ≈ 0% (Fig. 2) |" in md
+    assert "2000 resamples, generator seed 0" in md and "seeds diverged" in md
     assert "1 run(s) not finished yet" in md
     steps_read, values = read_metrics(root / exp.name / "salad" / "static-episodic" / "metrics.csv", "success")
     assert steps_read.tolist() == steps and values.shape == (10, 3)
@@ -110,7 +112,7 @@ def test_report_tabulates_milestones_with_the_seeds_that_learned(tmp_path):
     row = next(line for line in md.splitlines() if line.startswith("| salad | non-episodic, lr 3e-4 |")
                and "learned" in line)
     # the evaluation closest to 250 000 (250 200, not 245 200); 0.2 is not above the threshold
-    assert "| 36.7% [" in row and row.endswith("learned 1 / 3 | — |"), row
+    assert "| 36.7% [" in row and row.endswith("learned 1 / 3; diverged 0 | — |"), row
 
 
 def test_quick_curves_are_drawn_over_the_shipped_paper_budget_runs(tmp_path, monkeypatch):
@@ -132,3 +134,52 @@ def test_quick_curves_are_drawn_over_the_shipped_paper_budget_runs(tmp_path, mon
     md = (root / "report.md").read_text()
     assert "Dashed: the mean of the shipped run, 4 seeds × 1 M steps" in md
     assert (root / "figures" / f"{exp.name}_curves.png").stat().st_size > 10_000
+
+
+def test_bootstrap_intervals_do_not_depend_on_what_was_computed_before():
+    few = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.81, 0.0, 0.0])  # one learned seed: a lumpy bootstrap
+    other = np.linspace(0.0, 1.0, 7)
+    first = bootstrap_ci(few)
+    np.random.seed(123)
+    np.random.random(10)  # the global generator must not matter either
+    bootstrap_ci(other)
+    bootstrap_ci(np.stack([other, other]))
+    again = bootstrap_ci(few)
+    assert [float(x) for x in first] == [float(x) for x in again]
+    assert float(first[1]) < float(first[2])
+
+
+def test_the_divergence_rule():
+    from train.experiments.report.stats import DIVERGED_LOSS, blown, diverged, q_bound
+
+    assert q_bound(0.99) == pytest.approx(20_000.0) and q_bound(1.0) == float("inf")
+    loss = np.array([[1.0, 2 * DIVERGED_LOSS, np.nan, 1.0, 1.0], [1.0, 1.0, np.nan, 1.0, 1.0]])
+    max_q = np.array([[10.0, 10.0, 10.0, 3e4, np.nan], [10.0, 10.0, 10.0, 10.0, 10.0]])
+    # a blown loss, a NaN loss (no gradient step: no evidence), |Q| beyond the bound, a non-finite Q
+    assert blown(loss, max_q, 0.99).tolist() == [[False, True, False, True, True], [False] * 5]
+    assert blown(loss, max_q, 0.999).tolist()[0][3] is False  # the bound follows the run's discount
+    assert diverged(blown(loss, max_q, 0.99)).tolist() == [False, True, False, True, True]
+
+
+def test_divergence_is_marked_and_old_metrics_without_max_q_still_load(tmp_path):
+    from train.experiments.report.runs import read_run
+    from train.rundir import METRIC_COLUMNS as columns
+
+    old = tuple(c for c in columns if c != "max_q")
+    steps = [5_200, 10_200, 15_200]
+    # seed 1's loss blows up at the second evaluation and recovers; seed 2's Q does at the last
+    loss = lambda i, k: 5e3 if (i, k) == (1, 1) else 1.0  # noqa: E731
+    max_q = lambda i, k: 1e6 if (i, k) == (2, 2) else 40.0  # noqa: E731
+    _fake_run(tmp_path / "new", 3, steps, lambda i, k: 0.5, loss=loss, max_q=max_q)
+    _fake_run(tmp_path / "old", 3, steps, lambda i, k: 0.5, loss=loss, max_q=max_q, columns=old)
+    assert "max_q" not in (tmp_path / "old" / "metrics.csv").read_text()
+    new_run = read_run(tmp_path / "new", "salad", "c", "c")
+    old_run = read_run(tmp_path / "old", "salad", "c", "c")
+    assert new_run.diverged(0).tolist() == [False, False, False]
+    assert new_run.diverged(1).tolist() == [False, True, False]
+    assert new_run.diverged().tolist() == [False, True, True]  # once diverged, always marked
+    assert old_run.diverged().tolist() == [False, True, False]  # the loss alone
+    from train.experiments.report.stats import format_diverged
+
+    assert format_diverged(new_run.diverged(), new_run.seed_ids) == "2 / 3 (seeds 1, 2)"
+    assert format_diverged(old_run.diverged(), old_run.seed_ids) == "1 / 3 (seed 1)"

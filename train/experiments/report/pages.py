@@ -32,6 +32,7 @@ from train.experiments.report.runs import (
     load_experiment,
     load_reference,
 )
+from train.experiments.report.stats import BOOTSTRAP_NOTE, DIVERGED_RULE
 from train.experiments.report.tables import (
     FINAL_COLUMNS,
     MEASUREMENT_COLUMNS,
@@ -109,9 +110,10 @@ def write_markdown(root: Path, sections: Sequence[Section]) -> Path:
     """``report.md``: per experiment its figures, final results beside the paper's, and the paper's claims."""
     lines = [f"# ecorl report: `{_shown(root)}`", "",
              "Success = fraction of the 100 fixed validation layouts of the test MDP solved (food collector: mean "
-             "return over validation episodes), at the last evaluation; mean over seeds with a 95% bootstrap "
-             "confidence interval. Paper column: **≈** a value read from a figure or quoted in the paper's text "
-             "(approximate), **=** a value from a table (exact), — the paper reports no number.", ""]
+             "return over validation episodes), at the last evaluation; mean over seeds with a 95% confidence "
+             f"interval ({BOOTSTRAP_NOTE}). Seeds diverged: {DIVERGED_RULE}. Paper column: **≈** a value read "
+             "from a figure or quoted in the paper's text (approximate), **=** a value from a table (exact), — "
+             "the paper reports no number.", ""]
     for s in sections:
         info = s.exp.info
         lines += [f"## {s.exp.name} ({info.get('paper', '')}): {info.get('title', '')}", "",
@@ -158,7 +160,8 @@ def write_html(root: Path, sections: Sequence[Section], videos: Sequence[Path]) 
              "font-size:90%}video{width:260px;margin:4px}figure{display:inline-block;margin:4px}"
              "figcaption{font-size:80%;max-width:260px}",
              "</style></head><body>", f"<h1>ecorl report</h1><p><code>{html.escape(str(root))}</code> — "
-             "also as <a href='report.md'>report.md</a>. Paper column: ≈ approximate (figure or text), "
+             "also as <a href='report.md'>report.md</a>. Intervals: 95%, " + html.escape(BOOTSTRAP_NOTE) + ". "
+             "Seeds diverged: " + html.escape(DIVERGED_RULE) + ". Paper column: ≈ approximate (figure or text), "
              "= exact (table).</p>"]
     for s in sections:
         info = s.exp.info

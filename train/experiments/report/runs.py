@@ -10,8 +10,10 @@ from typing import Any
 
 import numpy as np
 
+from train.config import TrainConfig
 from train.experiments.catalog import BUDGETS, EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
+from train.experiments.report.stats import blown, diverged
 from train.experiments.sweep import EXPERIMENT_FILE
 
 REFERENCE_DIR = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
@@ -32,6 +34,17 @@ class Run:
     values: np.ndarray
     """(E, S) metric per evaluation and seed."""
     done: bool
+    seed_ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    """(S,) the seeds' numbers."""
+    blown: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=bool))
+    """(E, S) where a seed's values blew up at an evaluation (`stats.blown`; all False when unknown)."""
+
+    def diverged(self, evaluation: int = -1) -> np.ndarray:
+        """(S,) seeds that diverged at or before evaluation number ``evaluation`` (`stats.diverged`)."""
+        if self.blown.shape != self.values.shape:
+            return np.zeros(self.seeds, dtype=bool)
+        stop = evaluation % len(self.steps) + 1
+        return diverged(self.blown[:stop])
 
     @property
     def seeds(self) -> int:
@@ -65,18 +78,49 @@ def task_metric(task: str) -> str:
     return TASKS[task].metric if task in TASKS else "success"
 
 
-def read_metrics(path: Path, metric: str) -> tuple[np.ndarray, np.ndarray]:
-    """(steps (E,), values (E, S)) of a metrics.csv; evaluations missing a seed are dropped."""
-    by_step: dict[int, dict[int, float]] = {}
+def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
+                 ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """(steps (E,), seeds (S,), one (E, S) array per column) of a metrics.csv; evaluations missing a seed are
+    dropped, and a column a file lacks (or leaves empty) reads as ``missing``.
+    """
+    by_step: dict[int, dict[int, list[float]]] = {}
     with open(path, newline="") as f:
         for row in csv.DictReader(f):
-            by_step.setdefault(int(row["step"]), {})[int(row["seed"])] = float(row[metric])
+            cells = [row.get(c) for c in columns]
+            by_step.setdefault(int(row["step"]), {})[int(row["seed"])] = [
+                float(v) if v not in (None, "") else missing for v in cells]
     if not by_step:
-        return np.zeros(0, dtype=np.int64), np.zeros((0, 0))
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), [np.zeros((0, 0)) for _ in columns]
     seeds = sorted(set().union(*by_step.values()))
     steps = sorted(s for s, vals in by_step.items() if len(vals) == len(seeds))
-    values = np.array([[by_step[s][k] for k in seeds] for s in steps], dtype=np.float64).reshape(len(steps), -1)
-    return np.array(steps, dtype=np.int64), values
+    table = np.array([[by_step[s][k] for k in seeds] for s in steps], dtype=np.float64)
+    table = table.reshape(len(steps), len(seeds), len(columns))
+    return (np.array(steps, dtype=np.int64), np.array(seeds, dtype=np.int64),
+            [table[..., i] for i in range(len(columns))])
+
+
+def read_metrics(path: Path, metric: str) -> tuple[np.ndarray, np.ndarray]:
+    """(steps (E,), values (E, S)) of a metrics.csv; evaluations missing a seed are dropped."""
+    steps, _, (values,) = read_columns(path, (metric,))
+    return steps, values
+
+
+def run_gamma(run_dir: Path) -> float:
+    """The discount of the run in ``run_dir`` (its config.json; the default where unreadable)."""
+    try:
+        return float(json.loads((run_dir / "config.json").read_text())["dqn"]["gamma"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return TrainConfig().dqn.gamma
+
+
+def read_run(run_dir: Path, task: str, condition: str, label: str) -> Run | None:
+    """The `Run` of one condition's run directory (None when it has no complete evaluation yet)."""
+    metric = task_metric(task)
+    steps, seeds, (values, loss, max_q) = read_columns(run_dir / "metrics.csv", (metric, "loss", "max_q"))
+    if not len(steps):
+        return None
+    return Run(task, condition, label, run_dir, metric, steps, values, (run_dir / DONE_FILE).exists(), seeds,
+               blown(loss, max_q, run_gamma(run_dir)))
 
 
 def find_experiment_dirs(root: Path) -> list[Path]:
@@ -140,14 +184,9 @@ def load_experiment(path: Path) -> ExperimentResults:
                                 "mean": float(row["mean"]), "std": float(row["std"]), "seeds": int(row["seeds"]),
                                 "censored": int(row["censored"])})
                 continue
-            metrics = run_dir / "metrics.csv"
-            if not metrics.exists():
-                continue
-            metric = task_metric(task)
-            steps, values = read_metrics(metrics, metric)
-            if len(steps):
-                result.runs.append(Run(task, cond["name"], cond["label"], run_dir, metric, steps, values,
-                                       (run_dir / DONE_FILE).exists()))
+            run = read_run(run_dir, task, cond["name"], cond["label"]) if (run_dir / "metrics.csv").exists() else None
+            if run is not None:
+                result.runs.append(run)
     return result
 
 

@@ -2,21 +2,64 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 CI_LEVEL = 0.95
 """Confidence level of every interval the report shows."""
 BOOTSTRAP_SAMPLES = 2000
-"""Bootstrap resamples per interval."""
+"""Bootstrap resamples per interval (every interval of the report and of the docs)."""
+BOOTSTRAP_SEED = 0
+"""Seed of the resampling generator, fresh for every interval: an interval depends only on its values, not on
+what was computed before it. With few distinct values (e.g. <= 3 seeds that learned) the bounds move by
+points with this seed, so it is fixed here and stated in the report."""
+BOOTSTRAP_NOTE = (f"percentile bootstrap over seeds, {BOOTSTRAP_SAMPLES} resamples, generator seed "
+                  f"{BOOTSTRAP_SEED}")
+"""How every interval is made, as the report states it."""
 
 
 LEARNED = 0.2
 """A seed 'learned' the task when it solves more than this fraction of the validation layouts (outcomes are
 bimodal: a seed finds the task or it does not)."""
 
+DIVERGED_LOSS = 1e3
+"""A mean TD loss between two evaluations above this is a blow-up (an RMS TD error above 31.6 where a
+completion is worth +100)."""
+REWARD_BOUND = 200.0
+"""Per-step reward magnitude that no task reaches (the largest, a completion's +100, plus a +1 subgoal or a
+-100 penalty, stays within it): no true value |Q| exceeds ``REWARD_BOUND / (1 - gamma)``."""
+DIVERGED_RULE = (f"a seed diverged when, at any evaluation up to the one shown, its mean TD loss since the "
+                 f"previous evaluation exceeded {DIVERGED_LOSS:g} or its largest |Q| on the validation "
+                 f"rollouts exceeded {REWARD_BOUND:g} / (1 - gamma) ({REWARD_BOUND / 0.01:,.0f} at gamma 0.99) "
+                 f"or was not finite")
+"""The divergence rule in words (the report and docs/fidelity.md state it)."""
+
+
+def q_bound(gamma: float) -> float:
+    """The largest |Q| a value estimate can have at discount ``gamma`` (see `REWARD_BOUND`)."""
+    return math.inf if gamma >= 1.0 else REWARD_BOUND / (1.0 - gamma)
+
+
+def blown(loss: np.ndarray, max_q: np.ndarray, gamma: float) -> np.ndarray:
+    """Where a seed's values blew up at an evaluation, elementwise (the rule of `DIVERGED_RULE`).
+
+    ``loss`` and ``max_q`` are per evaluation and seed. A NaN loss (no gradient step since the previous
+    evaluation) says nothing; a NaN ``max_q`` is a non-finite Q-value, a blow-up. Files written before
+    ``max_q`` existed give it as 0 (no evidence), so their rule is the loss alone.
+    """
+    loss, max_q = np.asarray(loss, dtype=np.float64), np.asarray(max_q, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        return (loss > DIVERGED_LOSS) | ~(max_q <= q_bound(gamma))
+
+
+def diverged(blown_so_far: np.ndarray) -> np.ndarray:
+    """(S,) seeds that diverged by evaluation E, from the (E, S) `blown` matrix of its evaluations."""
+    return np.asarray(blown_so_far, dtype=bool).reshape(-1, np.shape(blown_so_far)[-1]).any(0)
+
 
 def bootstrap_ci(values: np.ndarray, level: float = CI_LEVEL, samples: int = BOOTSTRAP_SAMPLES,
-                 seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 seed: int = BOOTSTRAP_SEED) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean over the last axis (seeds) and its percentile-bootstrap confidence interval.
 
     ``values`` is (..., seeds); returns (mean, low, high), each of shape (...). With one seed the
@@ -47,3 +90,12 @@ def summarize(values: np.ndarray, metric: str) -> tuple[str, str]:
     ours = f"{float(mean) * scale:.1f}{unit} [{float(low) * scale:.1f}, {float(high) * scale:.1f}]"
     learned = f"{int((values > LEARNED).sum())} / {values.size}" if metric == "success" else "—"
     return ours, learned
+
+
+def format_diverged(flags: np.ndarray, seeds: np.ndarray) -> str:
+    """'d / S', with the diverged seeds' numbers when there are any: '2 / 10 (seeds 3, 7)'."""
+    flags = np.asarray(flags, dtype=bool)
+    text = f"{int(flags.sum())} / {flags.size}"
+    if flags.any():
+        text += f" (seed{'s' if flags.sum() > 1 else ''} {', '.join(str(int(s)) for s in np.asarray(seeds)[flags])})"
+    return text

@@ -8,7 +8,7 @@ import numpy as np
 
 from train.experiments.report.paper import format_paper, paper_value
 from train.experiments.report.runs import ExperimentResults
-from train.experiments.report.stats import LEARNED, metric_scale, summarize
+from train.experiments.report.stats import LEARNED, format_diverged, metric_scale, summarize
 from train.experiments.table1 import format_value
 
 MILESTONE_TOLERANCE = 5_000
@@ -16,7 +16,8 @@ MILESTONE_TOLERANCE = 5_000
 
 
 FINAL_COLUMNS = (("task", "task"), ("condition", "condition"), ("ours", "ours: final mean [95% CI]"),
-                 ("learned", f"seeds learned (> {LEARNED:.0%})"), ("seeds", "seeds"), ("step", "at step"),
+                 ("learned", f"seeds learned (> {LEARNED:.0%})"), ("diverged", "seeds diverged"), ("seeds", "seeds"),
+                 ("step", "at step"),
                  ("paper", "paper"))
 
 
@@ -33,7 +34,8 @@ def final_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
         ours, learned = summarize(run.values[-1], run.metric)
         scale, unit = metric_scale(run.metric)
         rows.append({"task": run.task, "condition": run.label, "metric": run.metric, "ours": ours,
-                     "learned": learned, "seeds": run.seeds, "step": int(run.steps[-1]), "done": run.done,
+                     "learned": learned, "diverged": format_diverged(run.diverged(), run.seed_ids),
+                     "seeds": run.seeds, "step": int(run.steps[-1]), "done": run.done,
                      "paper": format_paper(paper_value(paper, run.task, run.condition), scale, unit)})
     return rows
 
@@ -55,8 +57,9 @@ def milestone_rows(exp: ExperimentResults) -> list[dict[str, Any]]:
         for m in milestones:
             distance = np.abs(run.steps - m)
             if distance.size and distance.min() <= MILESTONE_TOLERANCE:
-                ours, learned = summarize(run.values[int(distance.argmin())], run.metric)
-                row[f"at{m}"] = f"{ours}; learned {learned}"
+                at = int(distance.argmin())
+                ours, learned = summarize(run.values[at], run.metric)
+                row[f"at{m}"] = f"{ours}; learned {learned}; diverged {int(run.diverged(at).sum())}"
             else:
                 row[f"at{m}"] = "—"
         rows.append(row)
@@ -65,7 +68,8 @@ def milestone_rows(exp: ExperimentResults) -> list[dict[str, Any]]:
 
 def milestone_columns(exp: ExperimentResults) -> tuple[tuple[str, str], ...]:
     """The (key, header) columns of `milestone_rows`."""
-    heads = [(f"at{m}", f"at {m:,} steps: mean [95% CI]; seeds > {LEARNED:.0%}") for m in _milestones(exp)]
+    heads = [(f"at{m}", f"at {m:,} steps: mean [95% CI]; seeds > {LEARNED:.0%}; seeds diverged")
+             for m in _milestones(exp)]
     return (("task", "task"), ("condition", "condition"), *heads)
 
 

@@ -1,0 +1,61 @@
+"""The evaluation protocol's divergence gauge: the largest |Q| of the rollouts, per agent."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from train.config import TrainConfig
+from train.evaluate import Evaluator
+from train.tasks import get_task, probe
+
+
+class ConstantQ:
+    """A stand-in agent whose Q-values are fixed per agent: action 0 worth ``values[k]``, the rest 0."""
+
+    def __init__(self, values: list[float], num_actions: int) -> None:
+        self.values, self.num_actions = torch.tensor(values), num_actions
+
+    def q_values(self, obs: torch.Tensor) -> torch.Tensor:
+        q = torch.zeros(*obs.shape[:2], self.num_actions)
+        q[..., 0] = self.values[:, None]
+        return q
+
+
+def _evaluator(num_agents: int) -> Evaluator:
+    info = probe(get_task("salad"), TrainConfig().env)
+    return Evaluator(get_task("salad").env_id, {**info.test_kwargs, "horizon": 5}, num_agents, 3, 0.0,
+                     info.num_actions)
+
+
+def test_max_q_is_the_largest_absolute_value_per_agent():
+    evaluator = _evaluator(3)
+    try:
+        result = evaluator(ConstantQ([2.5, -40.0, 0.0], 5), [0, 1, 2], step=0)
+    finally:
+        evaluator.close()
+    assert result.max_q.tolist() == [2.5, 40.0, 0.0]
+    assert result.solved.shape == (3, 3) and result.success.shape == (3,)
+
+
+def test_a_non_finite_q_value_reads_as_nan():
+    evaluator = _evaluator(2)
+    try:
+        result = evaluator(ConstantQ([math.inf, 1.0], 5), [0, 1], step=0)
+    finally:
+        evaluator.close()
+    assert math.isnan(result.max_q[0]) and result.max_q[1] == 1.0
+
+
+def test_layouts_can_be_chosen():
+    info = probe(get_task("salad"), TrainConfig().env)
+    kwargs = {**info.test_kwargs, "horizon": 5}
+    evaluator = Evaluator(get_task("salad").env_id, kwargs, 1, 2, 1.0, info.num_actions, layout_seeds=[7, 8])
+    try:
+        assert evaluator.layout_seeds == [7, 8]
+    finally:
+        evaluator.close()
+    with pytest.raises(ValueError, match="one per rollout"):
+        Evaluator(get_task("salad").env_id, kwargs, 1, 2, 1.0, info.num_actions, layout_seeds=[7])
