@@ -121,8 +121,10 @@ class DoubleDQN:
         ``actions`` (K, B) int64, ``rewards`` and ``terminated`` (K, B) float32.
         """
         batch = actions.shape[1]
-        q, cache = self.net.forward(self._online_views, obs_pairs)
-        q_next_target = self.net.forward(self._target_views, obs_pairs[:, batch:])[0]
+        index = self.net.view_index(obs_pairs)  # binary views: the first layer sums weight rows
+        q, cache = self.net.forward(self._online_views, obs_pairs, index)
+        next_index = None if index is None else index.tail(batch)
+        q_next_target = self.net.forward(self._target_views, obs_pairs[:, batch:], next_index)[0]
         target = double_dqn_target(q[:, batch:], q_next_target, rewards, terminated, self.cfg.gamma)
         index = actions.unsqueeze(-1)
         td = q[:, :batch].gather(2, index).squeeze(-1) - target
