@@ -90,6 +90,7 @@ class DoubleDQN:
     """Online and target Q-networks of K agents, their optimiser, and the double-DQN gradient step."""
 
     def __init__(self, net: QNetwork, cfg: DQNConfig, init_rngs: Sequence[np.random.Generator]) -> None:
+        net = net.with_inventory_repeat(cfg.inventory_repeat)  # the configuration decides the input width
         self.net, self.cfg = net, cfg
         rows, target_rows = [], []
         for rng in init_rngs:  # per agent, online then target, so the draws do not depend on K

@@ -101,3 +101,56 @@ def test_backward_writes_the_autograd_gradient(k):
     assert torch.allclose(mine, leaf.grad, atol=1e-12)
     again = net.backward(net.bind(flat), cache, grad_q)  # the buffer is reused, the result the same
     assert torch.equal(again, mine)
+
+
+def test_inventory_repeat_feeds_the_repeated_inventory():
+    repeated, plain = _net(repeat=3), QNetwork(VIEW, INV * 3, ACTIONS, (8, 8, 4), (5, 5, 3), (6,))
+    assert repeated.num_params == plain.num_params  # the same weights: 3 rows per inventory entry
+    flat = _params(repeated, 2)
+    x = _one_hot_obs(2, 7)
+    x_repeated = torch.from_numpy(np.concatenate(  # what np.repeat(inventory, 3) feeds the original's network
+        [x[..., :VIEW].numpy(), np.repeat(x[..., VIEW:].numpy(), 3, axis=-1)], -1))
+    assert torch.equal(repeated.forward(repeated.bind(flat), x)[0], plain.forward(plain.bind(flat), x_repeated)[0])
+
+
+def test_inventory_repeat_trains_every_copy_of_the_rows():
+    net = _net(repeat=4)
+    flat = _params(net, 1)
+    x = _one_hot_obs(1, 6)
+    x[..., VIEW:] = 1.0
+    q, cache = net.forward(net.bind(flat), x)
+    grad = net.backward(net.bind(flat), cache, torch.randn(1, 6, ACTIONS))
+    dw = net.bind(grad)[1][0][0][0]  # the inventory branch's first weights, (INV * 4, out)
+    copies = dw.view(INV, 4, -1)
+    assert torch.all(copies.abs().sum(-1) > 0)  # every copy has its own, non-zero gradient ...
+    assert torch.allclose(copies, copies[:, :1].expand_as(copies))  # ... the same for all copies of an entry
+    # so under Adam each copy moves by about lr: the entry's summed weight moves 4x faster, which scaling the
+    # input by 4 would not do (Adam's step does not grow with the gradient)
+
+
+def test_dqn_builds_the_configured_inventory_repeat():
+    agent = DoubleDQN(_net(), DQNConfig(inventory_repeat=8), [np.random.default_rng(0)])
+    assert agent.net.inventory_repeat == 8
+    assert agent.online.shape == (1, _net(repeat=8).num_params)
+    agent.update(_one_hot_obs(1, 4), torch.zeros(1, 2, dtype=torch.long), torch.ones(1, 2), torch.zeros(1, 2))
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="inventory_repeat must be an integer >= 1"):
+            DQNConfig(inventory_repeat=bad)
+
+
+def test_trainer_and_policy_use_the_configured_inventory_repeat():
+    from train.config import TrainConfig
+    from train.policy import Policy
+    from train.trainer import Trainer
+
+    cfg = TrainConfig().replace(task="salad", seeds=2, inventory_repeat=8, buffer_size=1000, warmup_steps=50,
+                                epoch_steps=50, updates_per_epoch=20, eval_every=50, progress=False)
+    trainer = Trainer(cfg)
+    try:
+        trainer.train_epoch()
+        assert trainer.agent.net.inventory_repeat == 8
+        policy = Policy(trainer.cfg, trainer.agent.online[1:2].clone(), 1)
+        obs = torch.from_numpy(np.random.default_rng(0).integers(0, 2, (1, 32, policy.obs_dim)).astype(np.float32))
+        np.testing.assert_array_equal(policy.greedy(obs), trainer.agent.greedy(obs.expand(2, -1, -1))[1:])
+    finally:
+        trainer.close()
