@@ -130,6 +130,17 @@ def chain_backward(layers: LayerViews, inputs: Sequence[Tensor], grad: Tensor, n
     return grad if need_input_grad else None
 
 
+def grad_buffer(net: QNetwork | MLP, like: Tensor) -> tuple[Tensor, tuple]:
+    """``net``'s (K, P) gradient buffer for ``like``'s K and dtype, and its layer views: made once, then
+    reused by every backward pass (each overwrites all of it).
+    """
+    key = (like.shape[0], like.dtype)
+    if key not in net._grads:
+        grad = like.new_empty(like.shape[0], net.num_params)
+        net._grads[key] = grad, net.bind(grad)
+    return net._grads[key]
+
+
 @numba.njit(cache=True)
 def _active_cells(x: np.ndarray, per_agent: int, view_dim: int, max_width: int) -> np.ndarray:  # pragma: no cover
     """Per row of ``x`` (K * N, obs_dim), its bias row and active view rows in `ViewIndex` numbering.
@@ -196,7 +207,7 @@ class QNetwork:
         self.head = Chain((view_layers[-1] + inventory_layers[-1], *head_layers, num_actions),
                           self.inventory.end)
         self._tables: dict[tuple, Tensor] = {}
-        self._grads: dict[tuple, tuple[Tensor, tuple]] = {}
+        self._grads: dict[tuple, tuple[Tensor, tuple]] = {}  # see `grad_buffer`
 
     def with_inventory_repeat(self, repeat: int) -> QNetwork:
         """This network with the inventory repeated ``repeat`` times (itself if it already is)."""
@@ -278,14 +289,6 @@ class QNetwork:
         q, h_in = chain_forward(bound[2], torch.cat((v, i), -1))
         return q, (v_in, i_in, h_in)
 
-    def _grad_buffer(self, like: Tensor) -> tuple[Tensor, tuple]:
-        """The (K, P) gradient buffer for ``like``'s K and dtype, and its layer views (made once)."""
-        key = (like.shape[0], like.dtype)
-        if key not in self._grads:
-            grad = like.new_empty(like.shape[0], self.num_params)
-            self._grads[key] = grad, self.bind(grad)
-        return self._grads[key]
-
     def backward(self, bound, cache: tuple, grad_q: Tensor) -> Tensor:
         """Gradient (K, P) of the loss given its gradient ``grad_q`` (K, n, actions) w.r.t. the Q-values.
 
@@ -295,7 +298,7 @@ class QNetwork:
         """
         n = grad_q.shape[1]
         v_in, i_in, h_in = ([a[:, :n] for a in part] for part in cache)
-        grad, views = self._grad_buffer(grad_q)
+        grad, views = grad_buffer(self, grad_q)
         grad_z = chain_backward(bound[2], h_in, grad_q, True, views[2])
         split = self.view.sizes[-1]
         chain_backward(bound[0], v_in, grad_z[..., :split], False, views[0])
@@ -308,7 +311,7 @@ class MLP:
 
     def __init__(self, sizes: Sequence[int]) -> None:
         self.chain = Chain(tuple(sizes))
-        self._grads: dict[tuple, tuple[Tensor, LayerViews]] = {}
+        self._grads: dict[tuple, tuple[Tensor, LayerViews]] = {}  # see `grad_buffer`
 
     @property
     def num_params(self) -> int:
@@ -332,10 +335,6 @@ class MLP:
         that the next call reuses).
         """
         n = grad_out.shape[1]
-        key = (grad_out.shape[0], grad_out.dtype)
-        if key not in self._grads:  # made once, reused by the next call
-            grad = grad_out.new_empty(grad_out.shape[0], self.num_params)
-            self._grads[key] = grad, self.bind(grad)
-        grad, views = self._grads[key]
+        grad, views = grad_buffer(self, grad_out)
         chain_backward(bound, [a[:, :n] for a in cache], grad_out, False, views)
         return grad
