@@ -154,3 +154,24 @@ def test_trainer_and_policy_use_the_configured_inventory_repeat():
         np.testing.assert_array_equal(policy.greedy(obs), trainer.agent.greedy(obs.expand(2, -1, -1))[1:])
     finally:
         trainer.close()
+
+
+def test_a_seed_in_a_sparse_batch_follows_its_run_alone():
+    from train.config import TrainConfig
+    from train.trainer import Trainer
+
+    def trained(first_seed: int, seeds: int) -> Trainer:
+        cfg = TrainConfig().replace(task="salad", dynamism=0.1, first_seed=first_seed, seeds=seeds, eps_start=0.3,
+                                    buffer_size=1000, warmup_steps=100, epoch_steps=100, updates_per_epoch=30,
+                                    eval_every=100, progress=False)
+        trainer = Trainer(cfg)
+        for _ in range(2):
+            trainer.train_epoch()
+        trainer.close()
+        return trainer
+
+    together = trained(0, 16)  # 16 x 128 observations per update: the sparse first layer
+    assert together.agent.net.view_index(torch.zeros(16, 128, together.info.obs_dim)) is not None  # its size
+    alone = trained(5, 1)  # 128 observations: the dense product
+    assert torch.allclose(alone.agent.online[0], together.agent.online[5], rtol=1e-4, atol=1e-6)
+    assert torch.allclose(alone.agent.target[0], together.agent.target[5], rtol=1e-4, atol=1e-6)
