@@ -236,11 +236,11 @@ class QNetwork:
 
     def view_index(self, x: Tensor, min_rows: int | None = None) -> ViewIndex | None:
         """The active view cells of observations ``x`` (K, N, obs_dim), or None where the sparse forward
-        does not apply (a view entry other than 0 and 1, more than a third of the view active) or does not
-        pay (fewer than ``min_rows`` rows, default `SPARSE_MIN_ROWS`).
+        does not apply (a view entry other than 0 and 1, more than a third of the view active, not on the
+        CPU) or does not pay (fewer than ``min_rows`` rows, default `SPARSE_MIN_ROWS`).
         """
         k, n, obs_dim = x.shape
-        if k * n < (SPARSE_MIN_ROWS if min_rows is None else min_rows):
+        if k * n < (SPARSE_MIN_ROWS if min_rows is None else min_rows) or x.device.type != "cpu":
             return None
         flat = np.ascontiguousarray(x.detach().numpy()).reshape(k * n, obs_dim)
         rows = _active_cells(flat, n, self.view_dim, self.view_dim // 3)
