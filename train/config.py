@@ -143,6 +143,8 @@ class DQNConfig:
     """Layer widths of the inventory branch (the last one is its linear output)."""
     head_layers: tuple[int, ...] = (16, 16)
     """Hidden widths of the head on the concatenated branch outputs (then one linear layer to the actions)."""
+    inventory_repeat: int = 1
+    """Feed the inventory repeated N times, as the released salad script's np.repeat(inventory, 8) does; 1: off."""
     init: str = field(default="rlkit", metadata={"choices": ("rlkit", "torch")})
     """Weight init: 'rlkit' (original: hidden U(+-1/sqrt(fan_out)), bias 0.1, output layers U(+-3e-3)) or 'torch'."""
     target_init: str = field(default="independent", metadata={"choices": ("independent", "copy")})
@@ -170,6 +172,7 @@ class DQNConfig:
         check_layers("view_layers", self.view_layers)
         check_layers("inventory_layers", self.inventory_layers)
         check_layers("head_layers", self.head_layers, allow_empty=True)
+        check_int("inventory_repeat", self.inventory_repeat)
         check_choices(self)
 
     def epsilon(self, step: int) -> float:

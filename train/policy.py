@@ -52,7 +52,7 @@ class Policy:
         self._info = info = probe(get_task(self.cfg.env.task), self.cfg.env)
         d = self.cfg.dqn
         self._net = QNetwork(info.view_dim, info.obs_dim - info.view_dim, info.num_actions, d.view_layers,
-                             d.inventory_layers, d.head_layers)
+                             d.inventory_layers, d.head_layers, d.inventory_repeat)
         if self.params.shape != (1, self._net.num_params):
             raise ValueError(f"policy parameters have shape {tuple(self.params.shape)}, but the network of "
                              f"this configuration needs (1, {self._net.num_params})")

@@ -132,6 +132,7 @@ class DoubleDQN:
         """``lrs``: a learning rate per agent (default: ``cfg.lr`` for all); ``device``: where the weights,
         the optimiser state and every update live.
         """
+        net = net.with_inventory_repeat(cfg.inventory_repeat)  # the configuration decides the input width
         self.net, self.cfg = net, cfg
         rows, target_rows = [], []
         for rng in init_rngs:  # per agent, online then target, so the draws do not depend on K
@@ -163,8 +164,10 @@ class DoubleDQN:
         ``actions`` (K, B) int64, ``rewards`` and ``terminated`` (K, B) float32.
         """
         batch = actions.shape[1]
-        q, cache = self.net.forward(self._online_views, obs_pairs)
-        q_next_target = self.net.forward(self._target_views, obs_pairs[:, batch:])[0]
+        index = self.net.view_index(obs_pairs)  # binary views: the first layer sums weight rows
+        q, cache = self.net.forward(self._online_views, obs_pairs, index)
+        next_index = None if index is None else index.tail(batch)
+        q_next_target = self.net.forward(self._target_views, obs_pairs[:, batch:], next_index)[0]
         target = double_dqn_target(q[:, batch:], q_next_target, rewards, terminated, self.cfg.gamma)
         index = actions.unsqueeze(-1)
         td = q[:, :batch].gather(2, index).squeeze(-1) - target
