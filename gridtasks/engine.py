@@ -127,6 +127,7 @@ __all__ = [
     "WAYPOINT",
     "WEST",
     "act",
+    "advance_world",
     "begin_episode",
     "code_mask",
     "count_code",
@@ -145,12 +146,14 @@ __all__ = [
     "random_step",
     "reset_world",
     "reset_worlds",
+    "reset_worlds_threaded",
     "respawn_predator",
     "rules_dtype",
     "shaping_strength",
     "spawn",
     "step_world",
     "step_worlds",
+    "step_worlds_threaded",
     "task_reward",
     "uniform",
     "window_side",
@@ -250,28 +253,68 @@ def begin_episode(w, r, obs) -> None:
 
 
 @nb.njit(cache=True)
+def advance_world(w, r, action: int, obs, autoreset: bool):
+    """One call of the batched step for one world: a step, or with ``autoreset`` the reset of a world whose
+    episode ended on the previous call (Gymnasium's next-step autoreset: reward 0, neither terminated nor
+    truncated). Returns (reward, terminated, truncated, solved, caught).
+    """
+    if autoreset and w.needs_reset:
+        begin_episode(w, r, obs)
+        return 0.0, False, False, False, False
+    rew, term, trunc, solv, cau = step_world(w, r, action, obs)
+    w.needs_reset = term or trunc
+    return rew, term, trunc, solv, cau
+
+
+@nb.njit(cache=True)
+def _advance(state, rules, b: int, actions, obs, rewards, terminated, truncated, solved, caught, autoreset):
+    """`advance_world` for world ``b`` of a batch, its outcomes written into row ``b`` of the outputs."""
+    out = advance_world(state[b], rules[0], actions[b], obs[b], autoreset)
+    rewards[b], terminated[b], truncated[b], solved[b], caught[b] = out
+
+
+@nb.njit(cache=True)
+def _begin(state, rules, b: int, mask, obs) -> None:
+    """`begin_episode` for world ``b`` of a batch if ``mask`` selects it."""
+    if mask[b]:
+        begin_episode(state[b], rules[0], obs[b])
+
+
+@nb.njit(cache=True)
 def step_worlds(state, rules, actions, obs, rewards, terminated, truncated, solved, caught, autoreset):
     """Step every world of ``state`` with its action, writing observations and outcomes in place.
 
     With ``autoreset`` a world whose episode ended on the previous call is reset instead of stepped
-    (Gymnasium's next-step autoreset): its reward is 0 and it is neither terminated nor truncated.
+    (see `advance_world`).
     """
-    r = rules[0]
     for b in range(state.shape[0]):
-        w = state[b]
-        if autoreset and w.needs_reset:
-            begin_episode(w, r, obs[b])
-            rewards[b], terminated[b], truncated[b], solved[b], caught[b] = 0.0, False, False, False, False
-            continue
-        rew, term, trunc, solv, cau = step_world(w, r, actions[b], obs[b])
-        rewards[b], terminated[b], truncated[b], solved[b], caught[b] = rew, term, trunc, solv, cau
-        w.needs_reset = term or trunc
+        _advance(state, rules, b, actions, obs, rewards, terminated, truncated, solved, caught, autoreset)
 
 
 @nb.njit(cache=True)
 def reset_worlds(state, rules, mask, obs) -> None:
     """Reset the worlds selected by ``mask`` (their RNG streams carry on; see `begin_episode`)."""
-    r = rules[0]
     for b in range(state.shape[0]):
-        if mask[b]:
-            begin_episode(state[b], r, obs[b])
+        _begin(state, rules, b, mask, obs)
+
+
+# ------------------------------------------------------------------- the batched loops across threads
+# The same loops with the worlds shared out among numba's threads. A world touches only its own record
+# (its random stream included), its own rows of the outputs and the read-only rules, so the result is
+# bit-identical to the sequential loop whatever the number of threads. Compiled on first use (a parallel
+# compilation takes seconds) and cached. Only arrays and integers cross into the parallel loop (numba 0.68
+# cannot pass a record value into it).
+
+
+@nb.njit(cache=True, parallel=True)
+def step_worlds_threaded(state, rules, actions, obs, rewards, terminated, truncated, solved, caught, autoreset):
+    """`step_worlds` across numba's threads (as many as ``numba.set_num_threads`` last set in this thread)."""
+    for b in nb.prange(state.shape[0]):
+        _advance(state, rules, b, actions, obs, rewards, terminated, truncated, solved, caught, autoreset)
+
+
+@nb.njit(cache=True, parallel=True)
+def reset_worlds_threaded(state, rules, mask, obs) -> None:
+    """`reset_worlds` across numba's threads."""
+    for b in nb.prange(state.shape[0]):
+        _begin(state, rules, b, mask, obs)
