@@ -30,9 +30,10 @@ bench: setup
 	$(BIN)/python benchmarks/bench_foodcollector.py
 	$(BIN)/python benchmarks/bench_train.py
 
-# The wheels a GPU image with torch, numba, numpy, matplotlib, opencv and tqdm lacks, for Python 3.12 on
-# manylinux x86_64, into the ignored folder wheels/ (carry it to the machine; install there with
-# `pip install --no-index --find-links wheels gymnasium pymunk` and `pip install --no-deps -e .`).
+# The wheels a GPU image with torch, numba, numpy, matplotlib, opencv and tqdm lacks (gymnasium and pymunk
+# with their dependencies) for Python 3.12 on manylinux x86_64, into the ignored folder wheels/. Carry it to
+# the machine, install there with `pip install --no-index --find-links wheels gymnasium pymunk` and run
+# from the repository root (`python -m train.cli ...`), which needs no install of ecorl itself.
 WHEELS_DIR ?= wheels
 GPU_WHEELS ?= gymnasium pymunk cffi pycparser farama-notifications cloudpickle typing-extensions
 
