@@ -8,7 +8,8 @@ five tasks share one implementation, and the single environment is the batched o
 
 The engine is four modules: `gridtasks.records` (the record layouts and constants), `gridtasks.cells` (the
 random stream, the shaping strength, cell and move helpers), `gridtasks.phases` (the phases of a step) and
-this one (a world's reset and step, and the batched loops), which re-exports the others' interface.
+this one (a world's reset and step, and the batched loops, on one thread or across numba's threads), which
+re-exports the others' interface.
 
 A step is the sequence of phases
     act -> move_creatures -> move_predators -> grow_resources -> wither -> reward -> observe
@@ -19,7 +20,7 @@ agent's move and its pick-up / place, as in the original.
 
 Randomness: each world owns a SplitMix64 stream (``world.rng``), seeded from the environment's
 ``np_random``. Every draw of a world comes from its own stream, so a world behaves identically whether it
-is stepped alone or in a batch of 4 096.
+is stepped alone or in a batch of 4 096, on one thread or many.
 """
 
 from __future__ import annotations
@@ -252,7 +253,7 @@ def begin_episode(w, r, obs) -> None:
     reset_world(w, r, obs)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def advance_world(w, r, action: int, obs, autoreset: bool):
     """One call of the batched step for one world: a step, or with ``autoreset`` the reset of a world whose
     episode ended on the previous call (Gymnasium's next-step autoreset: reward 0, neither terminated nor
@@ -267,54 +268,46 @@ def advance_world(w, r, action: int, obs, autoreset: bool):
 
 
 @nb.njit(cache=True)
-def _advance(state, rules, b: int, actions, obs, rewards, terminated, truncated, solved, caught, autoreset):
-    """`advance_world` for world ``b`` of a batch, its outcomes written into row ``b`` of the outputs."""
-    out = advance_world(state[b], rules[0], actions[b], obs[b], autoreset)
-    rewards[b], terminated[b], truncated[b], solved[b], caught[b] = out
-
-
-@nb.njit(cache=True)
-def _begin(state, rules, b: int, mask, obs) -> None:
-    """`begin_episode` for world ``b`` of a batch if ``mask`` selects it."""
-    if mask[b]:
-        begin_episode(state[b], rules[0], obs[b])
-
-
-@nb.njit(cache=True)
 def step_worlds(state, rules, actions, obs, rewards, terminated, truncated, solved, caught, autoreset):
     """Step every world of ``state`` with its action, writing observations and outcomes in place.
 
     With ``autoreset`` a world whose episode ended on the previous call is reset instead of stepped
     (see `advance_world`).
     """
+    r = rules[0]
     for b in range(state.shape[0]):
-        _advance(state, rules, b, actions, obs, rewards, terminated, truncated, solved, caught, autoreset)
+        out = advance_world(state[b], r, actions[b], obs[b], autoreset)
+        rewards[b], terminated[b], truncated[b], solved[b], caught[b] = out
 
 
 @nb.njit(cache=True)
 def reset_worlds(state, rules, mask, obs) -> None:
     """Reset the worlds selected by ``mask`` (their RNG streams carry on; see `begin_episode`)."""
+    r = rules[0]
     for b in range(state.shape[0]):
-        _begin(state, rules, b, mask, obs)
+        if mask[b]:
+            begin_episode(state[b], r, obs[b])
 
 
 # ------------------------------------------------------------------- the batched loops across threads
 # The same loops with the worlds shared out among numba's threads. A world touches only its own record
 # (its random stream included), its own rows of the outputs and the read-only rules, so the result is
 # bit-identical to the sequential loop whatever the number of threads. Compiled on first use (a parallel
-# compilation takes seconds) and cached. Only arrays and integers cross into the parallel loop (numba 0.68
-# cannot pass a record value into it).
+# compilation takes seconds) and cached. The rules record is read inside the loop body: numba 0.68
+# cannot pass a record value defined outside a parallel loop into it.
 
 
 @nb.njit(cache=True, parallel=True)
 def step_worlds_threaded(state, rules, actions, obs, rewards, terminated, truncated, solved, caught, autoreset):
     """`step_worlds` across numba's threads (as many as ``numba.set_num_threads`` last set in this thread)."""
     for b in nb.prange(state.shape[0]):
-        _advance(state, rules, b, actions, obs, rewards, terminated, truncated, solved, caught, autoreset)
+        out = advance_world(state[b], rules[0], actions[b], obs[b], autoreset)
+        rewards[b], terminated[b], truncated[b], solved[b], caught[b] = out
 
 
 @nb.njit(cache=True, parallel=True)
 def reset_worlds_threaded(state, rules, mask, obs) -> None:
     """`reset_worlds` across numba's threads."""
     for b in nb.prange(state.shape[0]):
-        _begin(state, rules, b, mask, obs)
+        if mask[b]:
+            begin_episode(state[b], rules[0], obs[b])

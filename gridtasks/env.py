@@ -233,7 +233,10 @@ class GridTaskVectorEnv(VectorEnv):
     ``threads`` (default 1) shares the worlds of every step and reset out among that many of numba's
     threads (at most ``NUMBA_NUM_THREADS``, by default the number of CPUs). Each world draws only from its
     own random stream, so every number is the same as with one thread; the threaded kernels compile on
-    first use. Trainers that step in a hot loop can call `step_arrays`, which skips the info dict.
+    first use. Threads pay only with cores to spare: on a machine whose cores other work keeps busy, waiting
+    threads slow each call down (``benchmarks/bench_gridtasks.py --threads N`` measures the ratio; with
+    numba's OpenMP layer, ``OMP_WAIT_POLICY=passive`` limits the loss). Trainers that step in a hot loop can
+    call `step_arrays`, which skips the info dict.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 8,
