@@ -71,6 +71,15 @@ def test_threads_change_nothing_but_the_threads_of_the_call():
     assert numba.get_num_threads() == before
 
 
+@needs_two_threads
+def test_validation_envs_on_threads_hold_the_same_layouts():
+    one, obs_one = gridtasks.make_validation_envs("factory", n=12, copies=2)
+    two, obs_two = gridtasks.make_validation_envs("factory", n=12, copies=2, threads=2)
+    assert two.threads == 2
+    assert_same(obs_one, obs_two, "obs")
+    assert_same(one.worlds, two.worlds, "worlds")
+
+
 def test_threads_must_fit_numbas_pool():
     with pytest.raises(ValueError, match="threads must be an integer >= 1"):
         make("gridtasks/Salad-v0", 2, threads=0)
