@@ -96,13 +96,16 @@ class FoodCollectorVectorEnv(VectorEnv):
     """Food collector worlds in ``workers`` processes (see the module docstring); make it with `make_vector_env`.
 
     ``reset(seed=s)`` seeds world i with ``s + i`` (or ``seed[i]`` given a list), as ``SyncVectorEnv`` does.
+    The workers start from a clean server process (``context="forkserver"``, the default), which does not
+    copy the parent's threads; like every non-fork start, it imports the main script, so a script that makes
+    this env runs its code under ``if __name__ == "__main__":``.
     `get_state` / `set_state` save and restore every world and the autoreset flags. Call `close` (or use it
     as a context manager) to end the worker processes.
     """
 
     metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int, workers: int, context: str = "spawn", **kwargs: Any):
+    def __init__(self, num_envs: int, workers: int, context: str = "forkserver", **kwargs: Any):
         _check_count("num_envs", num_envs)
         _check_count("workers", workers)
         probe = gym.make(ENV_ID, **kwargs)
@@ -140,7 +143,15 @@ class FoodCollectorVectorEnv(VectorEnv):
             raise RuntimeError("this vector env is closed")
         for conn, arg in zip(self._conns, args):
             conn.send((command, arg))
-        answers = [conn.recv() for conn in self._conns]
+        answers = []
+        for conn, proc in zip(self._conns, self._procs):
+            try:
+                answers.append(conn.recv())
+            except (EOFError, ConnectionError):
+                proc.join(timeout=5)
+                raise RuntimeError(f"a food collector worker process died (exit code {proc.exitcode}; its error "
+                                   f"is printed above); a script that starts workers must run its code under "
+                                   f"`if __name__ == '__main__':`") from None
         for ok, answer in answers:
             if not ok:
                 raise RuntimeError(f"a food collector worker failed: {answer}")
