@@ -6,7 +6,8 @@ Importing the package registers ``foodcollector/FoodCollector-v0``::
     env = gymnasium.make("foodcollector/FoodCollector-v0", dynamism=0.5, shaping="linear:1:0:280000",
                          reset_free=True, render_mode="rgb_array")
 
-See `foodcollector.env.FoodCollectorEnv` for the full specification.
+See `foodcollector.env.FoodCollectorEnv` for the full specification, and `foodcollector.make_vector_env`
+for many worlds stepped in parallel worker processes (``workers=N``).
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ ENV_ID = "foodcollector/FoodCollector-v0"
 if ENV_ID not in gymnasium.registry:
     gymnasium.register(id=ENV_ID, entry_point="foodcollector.env:FoodCollectorEnv")
 
+from foodcollector.vector import FoodCollectorVectorEnv, make_vector_env  # noqa: E402 (needs ENV_ID)
+
 __all__ = [
     "ACTION_TABLE",
     "ENV_ID",
@@ -30,6 +33,8 @@ __all__ = [
     "UNITY_EPISODE_DECISIONS",
     "FoodCollectorEnv",
     "FoodCollectorParams",
+    "FoodCollectorVectorEnv",
     "decode_action",
     "encode_action",
+    "make_vector_env",
 ]

@@ -8,7 +8,8 @@ five tasks share one implementation, and the single environment is the batched o
 
 The engine is four modules: `gridtasks.records` (the record layouts and constants), `gridtasks.cells` (the
 random stream, the shaping strength, cell and move helpers), `gridtasks.phases` (the phases of a step) and
-this one (a world's reset and step, and the batched loops), which re-exports the others' interface.
+this one (a world's reset and step, and the batched loops, on one thread or across numba's threads), which
+re-exports the others' interface.
 
 A step is the sequence of phases
     act -> move_creatures -> move_predators -> grow_resources -> wither -> reward -> observe
@@ -19,7 +20,7 @@ agent's move and its pick-up / place, as in the original.
 
 Randomness: each world owns a SplitMix64 stream (``world.rng``), seeded from the environment's
 ``np_random``. Every draw of a world comes from its own stream, so a world behaves identically whether it
-is stepped alone or in a batch of 4 096.
+is stepped alone or in a batch of 4 096, on one thread or many.
 """
 
 from __future__ import annotations
@@ -127,6 +128,7 @@ __all__ = [
     "WAYPOINT",
     "WEST",
     "act",
+    "advance_world",
     "begin_episode",
     "code_mask",
     "count_code",
@@ -145,12 +147,14 @@ __all__ = [
     "random_step",
     "reset_world",
     "reset_worlds",
+    "reset_worlds_threaded",
     "respawn_predator",
     "rules_dtype",
     "shaping_strength",
     "spawn",
     "step_world",
     "step_worlds",
+    "step_worlds_threaded",
     "task_reward",
     "uniform",
     "window_side",
@@ -249,23 +253,31 @@ def begin_episode(w, r, obs) -> None:
     reset_world(w, r, obs)
 
 
+@nb.njit(cache=True, inline="always")
+def advance_world(w, r, action: int, obs, autoreset: bool):
+    """One call of the batched step for one world: a step, or with ``autoreset`` the reset of a world whose
+    episode ended on the previous call (Gymnasium's next-step autoreset: reward 0, neither terminated nor
+    truncated). Returns (reward, terminated, truncated, solved, caught).
+    """
+    if autoreset and w.needs_reset:
+        begin_episode(w, r, obs)
+        return 0.0, False, False, False, False
+    rew, term, trunc, solv, cau = step_world(w, r, action, obs)
+    w.needs_reset = term or trunc
+    return rew, term, trunc, solv, cau
+
+
 @nb.njit(cache=True)
 def step_worlds(state, rules, actions, obs, rewards, terminated, truncated, solved, caught, autoreset):
     """Step every world of ``state`` with its action, writing observations and outcomes in place.
 
     With ``autoreset`` a world whose episode ended on the previous call is reset instead of stepped
-    (Gymnasium's next-step autoreset): its reward is 0 and it is neither terminated nor truncated.
+    (see `advance_world`).
     """
     r = rules[0]
     for b in range(state.shape[0]):
-        w = state[b]
-        if autoreset and w.needs_reset:
-            begin_episode(w, r, obs[b])
-            rewards[b], terminated[b], truncated[b], solved[b], caught[b] = 0.0, False, False, False, False
-            continue
-        rew, term, trunc, solv, cau = step_world(w, r, actions[b], obs[b])
-        rewards[b], terminated[b], truncated[b], solved[b], caught[b] = rew, term, trunc, solv, cau
-        w.needs_reset = term or trunc
+        out = advance_world(state[b], r, actions[b], obs[b], autoreset)
+        rewards[b], terminated[b], truncated[b], solved[b], caught[b] = out
 
 
 @nb.njit(cache=True)
@@ -275,3 +287,27 @@ def reset_worlds(state, rules, mask, obs) -> None:
     for b in range(state.shape[0]):
         if mask[b]:
             begin_episode(state[b], r, obs[b])
+
+
+# ------------------------------------------------------------------- the batched loops across threads
+# The same loops with the worlds shared out among numba's threads. A world touches only its own record
+# (its random stream included), its own rows of the outputs and the read-only rules, so the result is
+# bit-identical to the sequential loop whatever the number of threads. Compiled on first use (a parallel
+# compilation takes seconds) and cached. The rules record is read inside the loop body: numba 0.68
+# cannot pass a record value defined outside a parallel loop into it.
+
+
+@nb.njit(cache=True, parallel=True)
+def step_worlds_threaded(state, rules, actions, obs, rewards, terminated, truncated, solved, caught, autoreset):
+    """`step_worlds` across numba's threads (as many as ``numba.set_num_threads`` last set in this thread)."""
+    for b in nb.prange(state.shape[0]):
+        out = advance_world(state[b], rules[0], actions[b], obs[b], autoreset)
+        rewards[b], terminated[b], truncated[b], solved[b], caught[b] = out
+
+
+@nb.njit(cache=True, parallel=True)
+def reset_worlds_threaded(state, rules, mask, obs) -> None:
+    """`reset_worlds` across numba's threads."""
+    for b in nb.prange(state.shape[0]):
+        if mask[b]:
+            begin_episode(state[b], rules[0], obs[b])

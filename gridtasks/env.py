@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -20,30 +20,18 @@ from gymnasium.vector.utils import batch_space
 
 from ecology import Ecology, VisitGrid, check_action, check_render_mode, make_test_mdp_kwargs
 from gridtasks import engine
+from gridtasks.batch import (  # noqa: F401 (check_* are re-exported for the task modules)
+    StepBuffers,
+    check_actions,
+    check_choice,
+    check_positive_int,
+    check_probability,
+    check_threads,
+    reset_batch,
+    step_batch,
+    world_key,
+)
 from gridtasks.codes import NAMES, Code
-
-
-def world_key(np_random: np.random.Generator) -> np.uint64:
-    """Seed of a world's own random stream, drawn from the environment's seeded generator."""
-    return np_random.integers(np.iinfo(np.uint64).max, dtype=np.uint64, endpoint=True)
-
-
-def check_positive_int(name: str, value: Any, minimum: int = 1) -> None:
-    """Raise a clear error unless ``value`` is an integer >= ``minimum``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-
-
-def check_probability(name: str, value: Any) -> None:
-    """Raise a clear error unless ``value`` is a number in [0, 1]."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not 0 <= value <= 1:
-        raise ValueError(f"{name} must be a probability in [0, 1], got {value!r}")
-
-
-def check_choice(name: str, value: Any, choices: tuple[str, ...]) -> None:
-    """Raise a clear error unless ``value`` is one of ``choices``."""
-    if value not in choices:
-        raise ValueError(f"unknown {name} {value!r}; choose one of {', '.join(choices)}")
 
 
 @dataclass(frozen=True)
@@ -236,31 +224,28 @@ class GridTaskEnv(gym.Env):
         return render_world(self._state[0], self.rules[0], self.channels)
 
 
-class StepBuffers:
-    """Preallocated inputs and outputs of the step kernel for ``b`` worlds."""
-
-    def __init__(self, b: int, obs_dim: int):
-        self.actions = np.zeros(b, dtype=np.int64)
-        self.obs = np.zeros((b, obs_dim), dtype=np.float32)
-        self.rewards = np.zeros(b, dtype=np.float64)
-        self.terminated = np.zeros(b, dtype=np.bool_)
-        self.truncated = np.zeros(b, dtype=np.bool_)
-        self.solved = np.zeros(b, dtype=np.bool_)
-        self.caught = np.zeros(b, dtype=np.bool_)
-
-
 class GridTaskVectorEnv(VectorEnv):
     """Many worlds of one grid task stepped by one compiled call (Gymnasium next-step autoreset).
 
     ``reset(seed=s)`` seeds world i with ``s + i`` (or with ``seed[i]`` given a list); world i then
     follows exactly the trajectory of ``gymnasium.make(id)`` reset with that seed under the same actions.
+
+    ``threads`` (default 1) shares the worlds of every step and reset out among that many of numba's
+    threads (at most ``NUMBA_NUM_THREADS``, by default the number of CPUs). Each world draws only from its
+    own random stream, so every number is the same as with one thread; the threaded kernels compile on
+    first use. Threads pay only with cores to spare: on a machine whose cores other work keeps busy, waiting
+    threads slow each call down (``benchmarks/bench_gridtasks.py --threads N`` measures the ratio; with
+    numba's OpenMP layer, ``OMP_WAIT_POLICY=passive`` limits the loss). Trainers that step in a hot loop can
+    call `step_arrays`, which skips the info dict.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 8,
                                 "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, env_class: type[GridTaskEnv], num_envs: int, copy: bool = True, **kwargs):
+    def __init__(self, env_class: type[GridTaskEnv], num_envs: int, copy: bool = True, threads: int = 1,
+                 **kwargs):
         check_positive_int("num_envs", num_envs)
+        self.threads = check_threads(threads)
         self.template = env_class(**kwargs)
         self.num_envs = int(num_envs)
         self.copy = copy
@@ -302,26 +287,54 @@ class GridTaskVectorEnv(VectorEnv):
             self._state["lifetime_step"] = 0
             self._state["replay_layout"] = False
             self._seeded = True
-        engine.reset_worlds(self._state, self.rules, np.ones(self.num_envs, dtype=np.bool_), self._buffers.obs)
+        reset_batch(self._state, self.rules, np.ones(self.num_envs, dtype=np.bool_), self._buffers.obs,
+                    self.threads)
         return self._out(self._buffers.obs), self._info()
 
     def step(self, actions):
         """Step all worlds. Returns batched (obs, rewards, terminated, truncated, info)."""
-        if not self._seeded:
-            raise RuntimeError("call reset() before step()")
-        b = self._buffers
-        b.actions[:] = check_actions(actions, self.num_envs)
-        engine.step_worlds(self._state, self.rules, b.actions, b.obs, b.rewards, b.terminated, b.truncated,
-                           b.solved, b.caught, True)
+        b = self._step_all(actions, "step")
         return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
                 self._info())
+
+    def step_arrays(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """`step` without the info dict, for a trainer's hot loop: the same worlds, the same numbers.
+
+        ``actions`` is an integer array of shape (num_envs,). Returns (obs, reward, terminated, truncated,
+        agent_pos): float32 (num_envs, obs_dim), float64, bool, bool (num_envs,) and int64 (num_envs, 2)
+        positions (x, y), as ``info["agent_pos"]``. With ``copy=False`` the first four are the env's own
+        buffers, overwritten by the next call. ``info["solved"]`` and ``info["caught"]`` of the same step are
+        `last_solved` and `last_caught`. Call it on the env itself (``vec.unwrapped``), not a wrapper.
+        """
+        b = self._step_all(actions, "step_arrays")
+        return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
+                self._state["agent"].copy())
+
+    def _step_all(self, actions, caller: str) -> StepBuffers:
+        """Check ``actions``, step every world (next-step autoreset) and return the filled buffers."""
+        if not self._seeded:
+            raise RuntimeError(f"call reset() before {caller}()")
+        b = self._buffers
+        b.actions[:] = check_actions(actions, self.num_envs)
+        step_batch(self._state, self.rules, b, True, self.threads)
+        return b
+
+    @property
+    def last_solved(self) -> np.ndarray:
+        """Which worlds completed their task on the last step (``info["solved"]``)."""
+        return self._buffers.solved.copy()
+
+    @property
+    def last_caught(self) -> np.ndarray:
+        """Which worlds were caught by a predator on the last step (``info["caught"]``)."""
+        return self._buffers.caught.copy()
 
     def _out(self, array: np.ndarray) -> np.ndarray:
         return array.copy() if self.copy else array
 
     def _info(self) -> dict:
-        s, b = self._state, self._buffers
-        return {"solved": b.solved.copy(), "caught": b.caught.copy(), "agent_pos": s["agent"].copy(),
+        s = self._state
+        return {"solved": self.last_solved, "caught": self.last_caught, "agent_pos": s["agent"].copy(),
                 "lifetime_step": s["lifetime_step"].copy(), "completions": s["completions"].copy()}
 
     def render(self):
@@ -331,14 +344,3 @@ class GridTaskVectorEnv(VectorEnv):
         if self.render_mode is None:
             return None
         return tuple(render_world(w, self.rules[0], self.template.channels) for w in self._state)
-
-
-def check_actions(actions, num_envs: int) -> np.ndarray:
-    """Validate a batch of actions: shape (num_envs,), integers in [0, 7)."""
-    a = np.asarray(actions)
-    if a.shape != (num_envs,) or not np.issubdtype(a.dtype, np.integer):
-        raise ValueError(f"actions must be an integer array of shape ({num_envs},), got {a.dtype} {a.shape}")
-    if a.size and (a.min() < 0 or a.max() >= engine.NUM_ACTIONS):
-        raise ValueError(f"actions must lie in [0, {engine.NUM_ACTIONS - 1}], got values from {a.min()} "
-                         f"to {a.max()}")
-    return a

@@ -25,15 +25,18 @@ def make_test_env(task: str, **train_kwargs):
     return _env_class(task)(**test_mdp_kwargs(task, **train_kwargs))
 
 
-def make_validation_envs(task: str, n: int = NUM_VALIDATION_LAYOUTS, copies: int = 1, **train_kwargs):
+def make_validation_envs(task: str, n: int = NUM_VALIDATION_LAYOUTS, copies: int = 1, threads: int = 1,
+                         **train_kwargs):
     """A vector env of ``copies × n`` test-MDP worlds reset to the fixed validation layouts.
 
     World ``k·n + i`` holds layout i (seed ``ecology.validation_seeds()[i]``), so several agents can be
-    evaluated on the same layouts in one batch. Returns (vector env, first observations).
+    evaluated on the same layouts in one batch; ``threads`` as `GridTaskVectorEnv`'s. Returns (vector env,
+    first observations).
     """
     from gridtasks.env import GridTaskVectorEnv
 
-    vec = GridTaskVectorEnv(_env_class(task), num_envs=n * copies, **test_mdp_kwargs(task, **train_kwargs))
+    vec = GridTaskVectorEnv(_env_class(task), num_envs=n * copies, threads=threads,
+                            **test_mdp_kwargs(task, **train_kwargs))
     obs, _ = vec.reset(seed=validation_seeds(n) * copies)
     return vec, obs
 
