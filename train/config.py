@@ -239,6 +239,8 @@ class RunConfig:
     """Also log the metrics to TensorBoard (in RUN_DIR/tensorboard)."""
     progress: bool = field(default=True, metadata=RUNTIME)
     """Show a progress bar."""
+    env_threads: int = field(default=1, metadata=RUNTIME)
+    """Threads stepping the grid worlds (same results for any count; pays only with idle cores, e.g. a GPU host)."""
     device: str = field(default="cpu", metadata=RUNTIME)
     """Where the networks, the optimiser and the updates run: cpu, cuda or cuda:N (worlds stay on the CPU)."""
 
@@ -248,6 +250,7 @@ class RunConfig:
         check_int("steps", self.steps)
         check_int("checkpoint_every", self.checkpoint_every)
         check_int("threads", self.threads)
+        check_int("env_threads", self.env_threads)
         if not isinstance(self.device, str) or not re.fullmatch(r"cpu|cuda(:[0-9]+)?", self.device):
             raise ValueError(f"device must be cpu, cuda or cuda:N, got {self.device!r}")
         if self.first_seed + self.seeds > VALIDATION_SEED_BASE:

@@ -55,8 +55,10 @@ class Evaluator:
     """Runs the validation rollouts of every agent in one batched environment (built once, reused)."""
 
     def __init__(self, env_id: str, test_kwargs: dict, num_agents: int, rollouts: int, epsilon: float,
-                 num_actions: int, layout_seeds: Sequence[int] | None = None) -> None:
-        """``layout_seeds``: the R layouts' reset seeds (default: the first ``rollouts`` validation layouts)."""
+                 num_actions: int, layout_seeds: Sequence[int] | None = None, threads: int = 1) -> None:
+        """``layout_seeds``: the R layouts' reset seeds (default: the first ``rollouts`` validation layouts);
+        ``threads``: threads stepping the grid worlds (same results for any count).
+        """
         seeds = validation_seeds(rollouts) if layout_seeds is None else [int(s) for s in layout_seeds]
         if len(seeds) != rollouts:
             raise ValueError(f"{len(seeds)} layout seeds given for {rollouts} rollouts; give one per rollout")
@@ -64,7 +66,7 @@ class Evaluator:
         self.epsilon, self.num_actions = epsilon, num_actions
         self.horizon = int(test_kwargs["horizon"])
         self.layout_seeds = seeds * num_agents
-        self.env = make_vector_env(env_id, num_agents * rollouts, test_kwargs)
+        self.env = make_vector_env(env_id, num_agents * rollouts, test_kwargs, threads)
 
     def __call__(self, agent: ActionValues, agent_seeds: Sequence[int], step: int) -> EvalResult:
         """Evaluate every agent's current policy; ``step`` seeds the exploration draws."""

@@ -120,10 +120,13 @@ def probe(task: Task, env_cfg: EnvConfig) -> EnvInfo:
         env.close()
 
 
-def make_vector_env(env_id: str, num_envs: int, kwargs: dict[str, Any]) -> gym.vector.VectorEnv:
-    """``num_envs`` worlds in one vector env (next-step autoreset): the task's batched engine if it has one."""
+def make_vector_env(env_id: str, num_envs: int, kwargs: dict[str, Any], threads: int = 1) -> gym.vector.VectorEnv:
+    """``num_envs`` worlds in one vector env (next-step autoreset): the task's batched engine if it has one,
+    stepping its worlds on ``threads`` threads (bit-identical for any count; the other envs ignore it).
+    """
     if gym.spec(env_id).vector_entry_point is not None:
-        return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+        extra = {"threads": threads} if threads > 1 else {}
+        return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs, **extra)
     return gym.vector.SyncVectorEnv([partial(gym.make, env_id, **kwargs)] * num_envs)
 
 

@@ -101,7 +101,7 @@ class Trainer:
         for cfg, run_dir in zip(cfgs, run_dirs):
             rows = slice(start, start + cfg.run.seeds)
             start = rows.stop
-            env = make_vector_env(self.task.env_id, cfg.run.seeds, cfg.env.env_make_kwargs)
+            env = make_vector_env(self.task.env_id, cfg.run.seeds, cfg.env.env_make_kwargs, run.env_threads)
             run_dir = RunDir(run_dir) if isinstance(run_dir, (str, Path)) else run_dir
             self.parts.append(Part(cfg, rows, env, run_dir, np.zeros((cfg.run.seeds, *self.info.visit_shape),
                                                                      dtype=np.int64)))
@@ -241,7 +241,8 @@ class Trainer:
         if self._evaluator is None:
             ev = self.cfg.eval
             self._evaluator = Evaluator(self.task.env_id, evaluation_kwargs(self.info.test_kwargs, ev.eval_horizon),
-                                        self.num_agents, ev.eval_rollouts, ev.eval_epsilon, self.info.num_actions)
+                                        self.num_agents, ev.eval_rollouts, ev.eval_epsilon, self.info.num_actions,
+                                        threads=self.cfg.run.env_threads)
         return self._evaluator
 
     def evaluate(self) -> list[list[dict[str, Any]]]:

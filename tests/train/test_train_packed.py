@@ -110,3 +110,9 @@ def test_packs_spread_over_the_worker_processes(tmp_path):
     jobs = plan(get_experiment("headline-waypoint"), "smoke", tmp_path)
     assert sorted(len(u.jobs) for u in pack_jobs(jobs, workers=2)) == [2, 2]
     assert len(pack_jobs(jobs, workers=8)) == 4 and not any(isinstance(u, Pack) for u in pack_jobs(jobs, 8))
+
+
+def test_grid_worlds_stepped_on_threads_train_the_same_run(tmp_path):
+    Trainer(TINY.replace(steps=300), tmp_path / "one").run()
+    Trainer(TINY.replace(steps=300, env_threads=2), tmp_path / "two").run()
+    assert metrics_without_timing(tmp_path / "two") == metrics_without_timing(tmp_path / "one")
