@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from train.cli.common import user_errors
+from train.cli.common import relative, user_errors
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -37,14 +37,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     with user_errors(OSError, ValueError):
         paths = make_report(args.dir, args.videos, args.out)
     for path in paths:
-        print(_relative(path))
-    print(f"open {_relative(paths[-1])} in a browser", file=sys.stderr)
+        print(relative(path))
+    print(f"open {relative(paths[-1])} in a browser", file=sys.stderr)
     return 0
 
-
-def _relative(path: Path) -> Path:
-    """``path`` relative to the working directory when inside it."""
-    try:
-        return path.relative_to(Path.cwd())
-    except ValueError:
-        return path

@@ -23,7 +23,7 @@ DONE_FILE = "done.json"
 """Marker of a finished run (atomically written, with its step budget)."""
 
 
-TRAINER_FILES = ("config.json", "metrics.csv", "visits.npy", "visits")
+TRAINER_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "progress.json")
 """What a run that never reached its first checkpoint may have left (besides its lock and interrupted
 temporaries, `train.fileio.is_temporary`); cleared before it starts again."""
 
@@ -132,6 +132,7 @@ def execute(job: Job) -> JobResult:
 def _run_training(job: Job) -> bool:
     """Train (or resume) the job's run; write the done marker when it reached its budget."""
     from train.rundir import RunDir
+    from train.runlog import PROGRESS_FILE, heartbeat_to
     from train.trainer import Trainer
 
     run_dir = Path(job.run_dir)
@@ -148,7 +149,8 @@ def _run_training(job: Job) -> bool:
     began = time.perf_counter()
     trainer = Trainer(cfg, run, resume=resume)
     try:
-        trainer.run()
+        with heartbeat_to(run_dir / PROGRESS_FILE):  # the sweep shows each run's progress from it
+            trainer.run()
     finally:
         trainer.close()
     if trainer.epoch < trainer.cfg.num_epochs:

@@ -122,3 +122,24 @@ def lead_html(leads: list[Lead], out: Path, table) -> str:
         parts.append(table(lead.rows, FINAL_COLUMNS))
         parts.append(f"<p>Source: <code>{html.escape(source_name(lead.exp.path))}</code></p>")
     return "".join(parts) + "</section>"
+
+
+def run_summary(path: Path) -> list[str]:
+    """Lines that sum up an experiment directory: each condition's last evaluation and, for the headline
+    experiments, the claim at the paper's budget from the shipped runs.
+    """
+    from train.experiments.report.paper import load_paper
+
+    exp = load_experiment(path)
+    lines = [f"{exp.name}, this run:"]
+    for run in exp.runs:
+        ours, learned = summarize(run.values[-1], run.metric)
+        lines.append(f"  {run.label}: {ours} at {int(run.steps[-1]):,} steps, {learned} seeds learned")
+    paper_all = load_paper()
+    for name in lead_names([exp.name], path):
+        shipped = runs.REFERENCE_DIR / name
+        if (shipped / EXPERIMENT_FILE).exists():
+            sentence = contrast_sentence(load_experiment(shipped), paper_all.get(name, {}))
+            if sentence:
+                lines.append(f"{name} at the paper's budget (shipped, 10 seeds): {sentence}")
+    return lines
