@@ -86,6 +86,6 @@ def test_a_headline_page_leads_with_the_shipped_paper_budget_panels(tmp_path, na
                                      "5000,0,1,0,0.0,0,0,1\n5000,1,1,0,0.1,0,0,1\n")
     make_report(root, videos=False)
     md = (root / "report.md").read_text()
-    assert md.index("At the paper's budget") < md.index("This run:")
+    assert md.index("At the paper's budget") < md.index(f"## {name} (")
     assert "static non-episodic: 0.3% [0.0, 0.6], 0 / 10 seeds learned (paper ≈ 0%)" in md  # sparse headline
     assert (root / "figures" / "shipped_headline_curves.png").exists()

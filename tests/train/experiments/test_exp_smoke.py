@@ -87,4 +87,4 @@ def test_report_of_one_experiment_directory(smoke_root, cli, tmp_path):
     assert "## rnd (Fig. 6 (right))" in md and "static + RND" in md and "## walls" not in md
     assert (smoke_root / "rnd" / "figures" / "rnd_curves.png").exists()
     proc = cli("report", str(tmp_path), check=False)
-    assert proc.returncode == 2 and "holds no experiment results" in proc.stderr
+    assert proc.returncode == 2 and "is neither an experiment's results" in proc.stderr

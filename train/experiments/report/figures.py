@@ -85,6 +85,8 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
             handles.setdefault(run.label, line)
             has_paper = has_paper or quoted
         _style_panel(ax, task, runs[0].metric, own_legend=not shared_legend)
+        if reference is not None:  # the live steps fill the panel; the shipped runs are drawn in full elsewhere
+            ax.set_xlim(0, max(int(r.steps[-1]) for r in runs) * 1.03)
     for ax in list(axes.flat)[len(tasks):]:
         ax.set_visible(False)
     if not shared_legend:

@@ -109,10 +109,13 @@ def _shown(path: Path) -> str:
 
 
 def _budget_line(exp: ExperimentResults) -> str:
+    """The budget, the seeds and steps the runs reached, and the directory."""
     known = EXPERIMENTS.get(exp.name)
     budget = exp.info.get("budget", "?")
     paper_seeds = f"; the paper's budget is {known.paper_seeds} seeds" if known else ""
-    return f"Budget: `{budget}`{paper_seeds}. Directory: `{_shown(exp.path)}`."
+    seeds = "/".join(map(str, sorted({r.seeds for r in exp.runs})))
+    reached = f" ({seeds} seeds, up to {max(int(r.steps[-1]) for r in exp.runs):,} steps)" if exp.runs else ""
+    return f"Budget: `{budget}`{reached}{paper_seeds}. Directory: `{_shown(exp.path)}`."
 
 
 def _md_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]) -> list[str]:
@@ -120,6 +123,11 @@ def _md_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]
     out = ["| " + " | ".join(h for _, h in columns) + " |", "|" + "---|" * len(columns)]
     out += ["| " + " | ".join(str(r[k]) for k, _ in columns) + " |" for r in rows]
     return out
+
+
+LIVE_NOTE = ("the runs of this results directory (on this machine, usually shorter and with fewer seeds than the "
+             "shipped runs above, so their curves show the beginning of those).")
+"""What the page says between the shipped lead and the directory's own runs."""
 
 
 def write_markdown(source: Path, out: Path, sections: Sequence[Section], leads: Sequence[Lead] = ()) -> Path:
@@ -132,16 +140,17 @@ def write_markdown(source: Path, out: Path, sections: Sequence[Section], leads: 
              "confidence interval. Paper column: **≈** a value read from a figure or quoted in the paper's text "
              "(approximate), **=** a value from a table (exact), — the paper reports no number.", ""]
     lines += lead_markdown(list(leads), out, _md_table)
+    if leads:
+        lines += [f"**Below: {LIVE_NOTE}**", ""]
     for s in sections:
-        lines += _section_markdown(s, out, live=bool(leads))
+        lines += _section_markdown(s, out)
     return atomic_text(out / "report.md", "\n".join(lines).rstrip() + "\n")
 
 
-def _section_markdown(s: Section, out: Path, live: bool) -> list[str]:
+def _section_markdown(s: Section, out: Path) -> list[str]:
     """One experiment's part of report.md."""
     info = s.exp.info
-    where = "This run: " if live else ""
-    lines = [f"## {where}{s.exp.name} ({info.get('paper', '')}): {info.get('title', '')}", "",
+    lines = [f"## {s.exp.name} ({info.get('paper', '')}): {info.get('title', '')}", "",
              info.get("description", ""), "", _budget_line(s.exp), ""]
     if s.curves:
         lines += [f"![learning curves]({s.curves.relative_to(out).as_posix()})", ""]
@@ -193,11 +202,12 @@ def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Seq
              "</style></head><body>", f"<h1>ecorl report</h1><p><code>{html.escape(_shown(source))}</code> — "
              "also as <a href='report.md'>report.md</a>. Paper column: ≈ approximate (figure or text), "
              "= exact (table).</p>", lead_html(list(leads), out, _html_table)]
+    if leads:
+        parts.append(f"<p class='claim'><b>Below: {html.escape(LIVE_NOTE)}</b></p>")
     shown = set()
     for s in sections:
         info = s.exp.info
-        where = "This run: " if leads else ""
-        parts.append(f"<h2>{where}{html.escape(s.exp.name)} ({html.escape(info.get('paper', ''))}): "
+        parts.append(f"<h2>{html.escape(s.exp.name)} ({html.escape(info.get('paper', ''))}): "
                      f"{html.escape(info.get('title', ''))}</h2><p>{html.escape(info.get('description', ''))}</p>"
                      f"<p>{html.escape(_budget_line(s.exp).replace('`', ''))}</p>")
         for img in ([s.curves] if s.curves else []) + s.heatmaps:
