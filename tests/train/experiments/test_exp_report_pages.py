@@ -89,3 +89,21 @@ def test_a_headline_page_leads_with_the_shipped_paper_budget_panels(tmp_path, na
     assert md.index("At the paper's budget") < md.index(f"## {name} (")
     assert "static non-episodic: 0.3% [0.0, 0.6], 0 / 10 seeds learned (paper ≈ 0%)" in md  # sparse headline
     assert (root / "figures" / "shipped_headline_curves.png").exists()
+
+
+def test_videos_are_h264_padded_to_even_sizes_and_byte_stable(tmp_path):
+    import cv2
+    import numpy as np
+
+    from train.experiments.video import write_h264
+
+    frames = [np.full((33, 41, 3), 7 * i, np.uint8) for i in range(12)]
+    a, b = write_h264(frames, tmp_path / "a.mp4", fps=8), write_h264(frames, tmp_path / "b.mp4", fps=8)
+    assert a.read_bytes() == b.read_bytes() and b"avc1" in a.read_bytes()[:4096]
+    cap = cv2.VideoCapture(str(a))
+    ok, frame = cap.read()
+    cap.release()
+    assert ok and frame.shape[:2] == (34, 42)
+    with pytest.raises(ValueError, match="frame of size"):
+        write_h264([frames[0], np.zeros((10, 10, 3), np.uint8)], tmp_path / "c.mp4")
+    assert not (tmp_path / "c.mp4").exists()
