@@ -16,7 +16,7 @@ import numpy as np
 from train.fileio import atomic_path
 from train.policy import Policy, load_policy
 
-H264_OPTIONS = ("-threads", "1", "-movflags", "+faststart", "-map_metadata", "-1", "-fflags", "+bitexact",
+H264_OPTIONS = ("-f", "mp4", "-threads", "1", "-movflags", "+faststart", "-map_metadata", "-1", "-fflags", "+bitexact",
                 "-flags:v", "+bitexact", "-preset", "medium", "-crf", "20")
 """ffmpeg output options of every MP4 we write: one encoder thread and no metadata, so that the same frames
 give the same bytes; faststart so that a browser plays it before the whole file is loaded."""
