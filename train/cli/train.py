@@ -127,4 +127,5 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         key = "success" if trainer.task.metric == "success" else "return"
         mean = sum(r[key] for r in last) / len(last)
         print(f"step {last[0]['step']}: mean {key} over {len(last)} seed(s) = {mean:.3f}", file=sys.stderr)
+    print(f"next: ecorl report {out} (curves per seed, heat-maps, a video of the best seed)", file=sys.stderr)
     return 0
