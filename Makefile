@@ -13,11 +13,14 @@ DEMO_SECONDS ?= 690
 
 setup: $(VENV)/.installed
 
+# A line every 20 s while pip works silently (unpacking torch takes minutes on a slow disk).
 $(VENV)/.installed: pyproject.toml
 	@echo "setting up $(VENV) (first time only): torch (CPU build), then ecorl and its dependencies"
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install --progress-bar off $(WHEELS) "$(TORCH)"
-	$(BIN)/pip install --progress-bar off $(WHEELS) -e ".[dev]" | grep -E "^(Collecting|Successfully)" || true
+	@(while sleep 20; do echo "  ... still setting up $(VENV) ($$(date +%T))"; done) & ticker=$$!; \
+	  ( $(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install --progress-bar off $(WHEELS) "$(TORCH)" ) \
+	  && $(BIN)/pip install --progress-bar off $(WHEELS) -e ".[dev]" | grep -E "^(Collecting|Successfully)"; \
+	  kill $$ticker
 	$(BIN)/python -c "import ecology, train" && touch $@
 
 # The headline's contrast, live: static vs dynamic non-episodic salad (waypoint reward, 3 seeds), sized to what

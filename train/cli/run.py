@@ -113,6 +113,7 @@ def _finish(where: Path, report: bool) -> int:
     if report:
         from train.experiments.report import make_report
 
+        print(f"writing the report of {where} (figures, the shipped panels, videos) ...", file=sys.stderr)
         with user_errors(FileNotFoundError, ValueError):
             paths = make_report(where)
         for path in paths:
