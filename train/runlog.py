@@ -4,10 +4,13 @@ visitation counts and (optionally) TensorBoard scalars; and the stop signal that
 
 from __future__ import annotations
 
+import json
 import math
 import signal
 import threading
+import time
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,14 +30,91 @@ def postfix(rows: list[dict[str, Any]], num_agents: int) -> dict[str, str]:
     return out
 
 
+PROGRESS_FILE = "progress.json"
+"""A run directory's heartbeat under a sweep: step, total, steps/s, ETA and the last evaluation, rewritten
+every few seconds by the process that trains it, so that the sweep can show each run's progress."""
+
+HEARTBEAT_EVERY_S = 5.0
+"""Seconds between two heartbeat writes."""
+
+_heartbeat_paths: list[Path] = []
+"""Where this process's trainer writes its heartbeat (set by `heartbeat_to`; empty: nowhere)."""
+
+
+@contextmanager
+def heartbeat_to(*paths: str | Path):
+    """Inside the block, a trainer of this process writes its progress to ``paths`` (`PROGRESS_FILE` of each
+    run it trains: a packed trainer trains several).
+    """
+    global _heartbeat_paths
+    previous, _heartbeat_paths = _heartbeat_paths, [Path(p) for p in paths]
+    try:
+        yield
+    finally:
+        _heartbeat_paths = previous
+
+
+class Heartbeat:
+    """A progress bar's twin that writes the run's progress as JSON (atomically) every few seconds."""
+
+    def __init__(self, bar, paths: list[Path], total: int, initial: int) -> None:
+        self.bar, self.paths, self.total = bar, list(paths), total
+        self.step, self.start_step, self.began, self.last = initial, initial, time.monotonic(), -math.inf
+        self.latest: dict[str, str] = {}
+
+    def update(self, n: int) -> None:
+        """Advance the bar by ``n`` steps; write the heartbeat when it is due."""
+        self.bar.update(n)
+        self.step += n
+        if time.monotonic() - self.last >= HEARTBEAT_EVERY_S or self.step >= self.total:
+            self.write()
+
+    def set_postfix(self, values: dict[str, str], refresh: bool = True) -> None:
+        """Show the latest evaluation on the bar and in the heartbeat."""
+        self.bar.set_postfix(values, refresh=refresh)
+        self.latest = dict(values)
+
+    def write(self) -> None:
+        """Write the heartbeat now."""
+        from train.fileio import atomic_text
+
+        self.last = now = time.monotonic()
+        rate = (self.step - self.start_step) / max(now - self.began, 1e-9)
+        eta = (self.total - self.step) / rate if rate > 0 else None
+        beat = {"step": self.step, "total": self.total, "steps_per_s": round(rate, 1),
+                "eta_s": None if eta is None else round(eta), "latest": self.latest, "time": time.time()}
+        for path in self.paths:
+            try:
+                atomic_text(path, json.dumps(beat) + "\n")
+            except OSError:  # progress is a courtesy: never stop training for it
+                pass
+
+    def close(self) -> None:
+        """Close the bar."""
+        self.bar.close()
+
+
+def read_heartbeat(path: str | Path) -> dict[str, Any] | None:
+    """A run's heartbeat (`PROGRESS_FILE`), or None when there is none (yet) or it cannot be read."""
+    try:
+        beat = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    return beat if isinstance(beat, dict) and "step" in beat else None
+
+
 @contextmanager
 def progress_bar(cfg: TrainConfig, initial: int, conditions: int = 1):
-    """A tqdm bar over environment steps per seed (a silent stand-in when disabled)."""
+    """A tqdm bar over environment steps per seed (a silent stand-in when disabled); under `heartbeat_to`,
+    also the heartbeat files.
+    """
     from tqdm import tqdm
 
     what = f"{cfg.env.task} x{cfg.run.seeds}" if conditions == 1 else f"{cfg.env.task}: {conditions} conditions"
     bar = tqdm(total=cfg.total_steps, initial=initial, unit="step", disable=not cfg.run.progress,
                desc=what, dynamic_ncols=True)
+    if _heartbeat_paths:
+        bar = Heartbeat(bar, _heartbeat_paths, cfg.total_steps, initial)
     try:
         yield bar
     finally:

@@ -38,6 +38,14 @@ def user_errors(*kinds: type[BaseException]) -> Iterator[None]:
         raise UserError(" ".join(str(err).split())) from err
 
 
+def relative(path: Path) -> Path:
+    """``path`` relative to the working directory when inside it (what a user can paste)."""
+    try:
+        return Path(path).relative_to(Path.cwd())
+    except ValueError:
+        return Path(path)
+
+
 def positive(text: str) -> int:
     """An integer >= 1 (an argparse type)."""
     value = int(text)

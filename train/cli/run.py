@@ -5,9 +5,10 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 from pathlib import Path
 
-from train.cli.common import DEFAULT_OUT, UserError, positive, user_errors
+from train.cli.common import DEFAULT_OUT, UserError, positive, relative, user_errors
 from train.experiments.catalog import BUDGETS, EXPERIMENTS, get_experiment
 
 
@@ -44,6 +45,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="where the networks and updates run: cpu (default) or cuda[:N]")
     parser.add_argument("--seeds", type=positive, default=None, help="override the budget's seeds per condition")
     parser.add_argument("--steps", type=positive, default=None, help="override the budget's steps per seed")
+    parser.add_argument("--minutes", type=float, default=None,
+                        help="time budget: measure this machine's speed first, then size the steps per seed so that "
+                             "every run and the report end within this many minutes (at most the budget's steps)")
     parser.add_argument("--dry-run", action="store_true", help="print the runs (and their state), run nothing")
     parser.add_argument("--report", action="store_true", help="write the report of OUT/EXPERIMENT afterwards")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
@@ -68,6 +72,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Plan the experiment's runs and execute those not done yet."""
     from train.experiments.sweep import plan, print_plan, run_jobs, summarize, write_experiment_file
 
+    began = time.monotonic()
     if args.list:
         _list_experiments()
         return 0
@@ -85,6 +90,11 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
         with user_errors(ValueError):
             check_device(args.device)
+    if args.minutes is not None:
+        from train.experiments.timebox import timebox
+
+        jobs = timebox(jobs, args.minutes * 60 - (time.monotonic() - began), args.jobs or os.cpu_count() or 1,
+                       lambda line: print(line, file=sys.stderr))
     if args.dry_run:
         print_plan(jobs)
         return 0
@@ -106,13 +116,27 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     if counts.get("failed") or counts.get("interrupted"):
         print("some runs did not finish; re-run the same command to retry/resume them", file=sys.stderr)
         return 1
-    if args.report:
+    return _finish(where, args.report)
+
+
+def _finish(where: Path, report: bool) -> int:
+    """Write the report when asked, then sum up the results and say what to open."""
+    from train.experiments.report.lead import run_summary
+
+    page = None
+    if report:
         from train.experiments.report import make_report
 
+        print(f"writing the report of {where} (figures, the shipped panels, videos) ...", file=sys.stderr)
         with user_errors(FileNotFoundError, ValueError):
             paths = make_report(where)
         for path in paths:
-            print(path)
+            print(relative(path))
+        page = relative(paths[-1])
+    with user_errors(FileNotFoundError, ValueError):
+        print("\n".join(run_summary(where)), file=sys.stderr)
+    if page is not None:
+        print(f"open {page} in a browser (report.md beside it)", file=sys.stderr)
     else:
         print(f"next: ecorl report {where}", file=sys.stderr)
     return 0

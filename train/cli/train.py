@@ -9,8 +9,9 @@ from pathlib import Path
 from typing import Any
 
 from train.cli.common import user_errors
-from train.cli.flags import add_config_arguments, config_from_args, flag, given_settings, shown
+from train.cli.flags import add_config_arguments, flag, given_settings, shown
 from train.config import SECTIONS, TrainConfig, _jsonable
+from train.experiments.catalog import TUNED
 from train.tasks import TASKS
 
 
@@ -50,6 +51,13 @@ def default_run_dir(cfg: TrainConfig) -> Path:
     return Path("runs") / "-".join(parts)
 
 
+def tuned_settings(task: str, given: dict[str, Any]) -> dict[str, Any]:
+    """The task's tuned settings (`train.experiments.catalog.TUNED`, which every experiment uses) that the
+    command line does not override, e.g. ``{'lr': 3e-4}`` for salad unless ``--lr`` is given.
+    """
+    return {k: v for k, v in TUNED.get(task, {}).items() if k not in given}
+
+
 def _task_name(text: str) -> str:
     """Validate the task argument with a message that lists the choices."""
     if text not in TASKS:
@@ -62,7 +70,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(
         "train", help="train double DQN on a task (several seeds together in one process)",
         description="Train double DQN (the paper's trainer) on one condition, all its seeds in one "
-                    "process; writes config.json, metrics.csv, visitation counts and a checkpoint to --out.")
+                    "process; writes config.json, metrics.csv, visitation counts and a checkpoint to --out. A task "
+                    "with tuned settings (salad: --lr 3e-4) uses them unless the flag is given.")
     parser.add_argument("task", type=_task_name, metavar="TASK", help=f"one of: {', '.join(TASKS)}")
     parser.add_argument("--out", type=Path, default=None,
                         help="run directory (default: runs/<task>-<knobs>-<seeds>)")
@@ -78,12 +87,13 @@ def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
     """The configuration and run directory ``ecorl train`` asks for (on --resume: the checkpoint's settings
     with the given ones); raises ValueError or `RunDirError` with a one-line reason.
     """
-    cfg = config_from_args(args).replace(task=args.task)
+    given = given_settings(args)
+    cfg = TrainConfig().replace(**{**tuned_settings(args.task, given), **given, "task": args.task})
     out = args.out or default_run_dir(cfg)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file, not a directory; choose a directory path")
     if args.resume:
-        cfg = resume_config(out, args.task, {**given_settings(args), "task": args.task})
+        cfg = resume_config(out, args.task, {**given, "task": args.task})
     return cfg, out
 
 
@@ -99,6 +109,11 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     where = f"resuming at step {trainer.step} of" if args.resume else "training"
     print(f"ecorl train {cfg.env.task}: {where} {trainer.cfg.total_steps} steps, {run.seeds} seed(s), "
           f"torch threads {run.threads}, run directory {out}", file=sys.stderr)
+    tuned = {} if args.resume else tuned_settings(cfg.env.task, given_settings(args))
+    if tuned:
+        shown_tuned = ", ".join(f"{flag(k)} {shown(v)}" for k, v in tuned.items())
+        print(f"using {cfg.env.task}'s tuned settings, as the experiments do: {shown_tuned} (give the flag to "
+              f"override)", file=sys.stderr)
     try:
         rows = trainer.run()
     finally:
@@ -112,4 +127,5 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         key = "success" if trainer.task.metric == "success" else "return"
         mean = sum(r[key] for r in last) / len(last)
         print(f"step {last[0]['step']}: mean {key} over {len(last)} seed(s) = {mean:.3f}", file=sys.stderr)
+    print(f"next: ecorl report {out} (curves per seed, heat-maps, a video of the best seed)", file=sys.stderr)
     return 0

@@ -224,8 +224,8 @@ def _salad_experiments() -> list[Experiment]:
             "waypoint reward",
             "The headline's four conditions trained with the reward of the released Fig. 4 script (+1 for every "
             "ingredient picked up, farmable; +100 for the salad) instead of the paper text's sparse reward. "
-            "The settings study found it the strongest setting after the learning rate. The README's main job (3 seeds "
-            "x 100 000 steps at the quick budget, about ten minutes on 2 cores).",
+            "The settings study found it the strongest setting after the learning rate. `make demo` runs its two "
+            "non-episodic conditions at the quick budget, sized to the machine's speed (`ecorl run --minutes`).",
             {"salad": _with_reward(salad_dyn, "waypoint", "waypoint reward")}, {"salad": 1_000_000}, 10,
             {"smoke": SMOKE, "quick": _quick(3, 100_000)}, heatmaps=True, videos=True),
         Experiment(

@@ -45,19 +45,18 @@ def montage(frames: list[np.ndarray], height: int = 320) -> np.ndarray:
 
 
 def run_demo(out: Path, steps: int = 150, seed: int = 0) -> list[Path]:
-    """Write one MP4 per task and ``tasks.png`` into ``out``; return the written paths."""
+    """Write one H.264 MP4 per task and ``tasks.png`` into ``out``; return the written paths."""
     import cv2
     from tqdm import tqdm
 
-    from ecology import write_video
-    from train.fileio import atomic_path, atomic_write
+    from train.experiments.video import write_h264
+    from train.fileio import atomic_write
 
     out.mkdir(parents=True, exist_ok=True)
     written, stills = [], []
     for name, env in tqdm(demo_envs().items(), desc="rendering demo videos", unit="task"):
         frames = record_random_rollout(env, steps, seed)
-        with atomic_path(out / f"{name}.mp4") as tmp:
-            write_video(frames, tmp, fps=env.metadata.get("render_fps", 8))
+        write_h264(frames, out / f"{name}.mp4", fps=env.metadata.get("render_fps", 8))
         written.append(out / f"{name}.mp4")
         stills.append(frames[len(frames) // 2])
     ok, png = cv2.imencode(".png", montage(stills)[:, :, ::-1])

@@ -23,7 +23,7 @@ DONE_FILE = "done.json"
 """Marker of a finished run (atomically written, with its step budget)."""
 
 
-TRAINER_FILES = ("config.json", "metrics.csv", "visits.npy", "visits")
+TRAINER_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "progress.json")
 """What a run that never reached its first checkpoint may have left (besides its lock and interrupted
 temporaries, `train.fileio.is_temporary`); cleared before it starts again."""
 
@@ -169,6 +169,7 @@ def _train(jobs: list[Job], opened: list) -> bool:
     """Train ``jobs`` (one trainer; packed when several) from their opened run directories; write each done
     marker when the runs reach their budget. Returns False when a signal stopped them (with checkpoints).
     """
+    from train.runlog import PROGRESS_FILE, heartbeat_to
     from train.trainer import Trainer
 
     began = time.perf_counter()
@@ -176,7 +177,8 @@ def _train(jobs: list[Job], opened: list) -> bool:
     runs, resume = [o[0] for o in opened], [o[1] for o in opened]
     trainer = Trainer(cfgs[0], runs[0], resume[0]) if len(jobs) == 1 else Trainer.packed(cfgs, runs, resume)
     try:
-        trainer.run()
+        with heartbeat_to(*(Path(j.run_dir) / PROGRESS_FILE for j in jobs)):  # the sweep shows progress from it
+            trainer.run()
     finally:
         trainer.close()
     if trainer.epoch < trainer.cfg.num_epochs:

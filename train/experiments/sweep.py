@@ -22,6 +22,7 @@ import os
 import sys
 import time
 from collections.abc import Iterable, Sequence
+from contextlib import contextmanager
 from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
@@ -123,21 +124,83 @@ def pack_jobs(jobs: Sequence[Job], workers: int = 1) -> list[Job | Pack]:
     return units
 
 
+PROGRESS_EVERY_S = 20.0
+"""Seconds between two progress reports of the running jobs."""
+
+
+def _duration(seconds: float | None) -> str:
+    """'4 min 05 s' (or '?')."""
+    if seconds is None:
+        return "?"
+    minutes, secs = divmod(int(round(seconds)), 60)
+    return f"{minutes} min {secs:02d} s" if minutes else f"{secs} s"
+
+
+def progress_line(job: Job, began: float) -> str:
+    """One line on a job: steps done of its total, steps/s, ETA and the last evaluation (from its heartbeat)."""
+    from train.runlog import PROGRESS_FILE, read_heartbeat
+
+    beat = read_heartbeat(Path(job.run_dir) / PROGRESS_FILE)
+    name = f"{job.task}/{job.condition}"
+    if beat is None or beat.get("time", 0) < began - 1:
+        return f"  {name}: starting (imports, environment, first epoch)"
+    step, total = int(beat["step"]), int(beat.get("total") or 1)
+    bar = "#" * round(20 * step / total) + "." * (20 - round(20 * step / total))
+    latest = ", ".join(f"last {k} {v}" for k, v in beat.get("latest", {}).items() if k != "sps")
+    return (f"  {name}: [{bar}] {step:,}/{total:,} steps ({step / total:.0%}), {beat.get('steps_per_s', 0):.0f} "
+            f"steps/s per seed, ETA {_duration(beat.get('eta_s'))}" + (f", {latest}" if latest else ""))
+
+
+class ProgressMonitor:
+    """A thread that prints, every `PROGRESS_EVERY_S`, one line per running job (from their heartbeats,
+    which the worker processes write).
+    """
+
+    def __init__(self, jobs: Sequence[Job], write, every: float = PROGRESS_EVERY_S) -> None:
+        import threading
+
+        self.jobs, self.write, self.every = list(jobs), write, every
+        self.finished: set[str] = set()
+        self.began, self.wall = time.monotonic(), time.time()
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+
+    def _loop(self) -> None:
+        while not self.stop.wait(self.every):
+            running = [j for j in self.jobs if j.name not in self.finished]
+            if running:
+                self.write(f"[{_duration(time.monotonic() - self.began)}] {len(running)} run(s) in progress:\n"
+                           + "\n".join(progress_line(j, self.wall) for j in running))
+
+    def __enter__(self) -> ProgressMonitor:
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop.set()
+        self.thread.join()
+
+
 def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None = None,
              address: str | None = None, progress: bool = True, pack: int = 0) -> list[JobResult]:
-    """Run every job not yet done (longest first), with a progress bar over conditions; ``pack`` > 0: the
-    conditions of a task that can share a trainer train packed, in up to ``pack`` processes (`pack_jobs`).
+    """Run every job not yet done (longest first), with a progress bar over conditions and, every
+    `PROGRESS_EVERY_S`, a line per running job; ``pack`` > 0: the conditions of a task that can share a
+    trainer train packed, in up to ``pack`` processes (`pack_jobs`).
     """
     from tqdm import tqdm
 
     done_before = [j for j in jobs if _safe_is_done(j)]
     todo = [j for j in jobs if j not in done_before]
+    monitored = todo
     todo = sorted(pack_jobs(todo, pack) if pack else todo, key=lambda j: -j.cost)
     bar = tqdm(total=len(jobs), initial=len(done_before), unit="run", desc="conditions", disable=not progress,
                dynamic_ncols=True)
     results = [JobResult(j.name, "skipped") for j in done_before]
 
+    monitor = ProgressMonitor(monitored, lambda text: bar.write(text, file=sys.stderr))
+
     def on_result(result: JobResult) -> None:
+        monitor.finished.add(result.job)
         bar.update(1)
         if result.status == "failed":
             bar.write(f"FAILED {result.job}: {result.error}", file=sys.stderr)
@@ -151,12 +214,20 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
         if not todo:
             pass
         elif executor == "local":
-            results += run_local(todo, workers or os.cpu_count() or 1, on_result)
+            with monitor if progress else _nothing():
+                results += run_local(todo, workers or os.cpu_count() or 1, on_result)
         else:
-            results += run_ray(todo, address, on_result)
+            with monitor if progress else _nothing():
+                results += run_ray(todo, address, on_result)
     finally:
         bar.close()
     return results
+
+
+@contextmanager
+def _nothing():
+    """A context that does nothing."""
+    yield
 
 
 def _safe_is_done(job: Job) -> bool:

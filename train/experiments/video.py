@@ -6,7 +6,7 @@ The policy is one seed's network from a run directory, its ``checkpoint.npz``, o
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -15,6 +15,39 @@ import numpy as np
 
 from train.fileio import atomic_path
 from train.policy import Policy, load_policy
+
+H264_OPTIONS = ("-f", "mp4", "-threads", "1", "-movflags", "+faststart", "-map_metadata", "-1", "-fflags", "+bitexact",
+                "-flags:v", "+bitexact", "-preset", "medium", "-crf", "20")
+"""ffmpeg output options of every MP4 we write: one encoder thread and no metadata, so that the same frames
+give the same bytes; faststart so that a browser plays it before the whole file is loaded."""
+
+
+def write_h264(frames: Sequence[np.ndarray], path: str | Path, fps: float = 8.0) -> Path:
+    """Write RGB uint8 frames as an H.264 MP4 (yuv420p: it plays in every browser) at ``path``, atomically.
+
+    Uses the ffmpeg binary that the ``imageio-ffmpeg`` package ships; odd frame sizes are padded by one black
+    row or column (H.264 in yuv420p needs even sizes).
+    """
+    import imageio_ffmpeg
+
+    if not len(frames):
+        raise ValueError(f"no frames to write to {path}")
+    h, w = frames[0].shape[:2]
+    ph, pw = h + h % 2, w + w % 2
+    with atomic_path(path) as tmp:
+        writer = imageio_ffmpeg.write_frames(str(tmp), (pw, ph), fps=float(fps), codec="libx264",
+                                             pix_fmt_out="yuv420p", macro_block_size=1, ffmpeg_log_level="error",
+                                             output_params=list(H264_OPTIONS))
+        writer.send(None)  # start ffmpeg
+        try:
+            for frame in frames:
+                frame = np.asarray(frame, dtype=np.uint8)
+                if frame.shape[:2] != (h, w):
+                    raise ValueError(f"frame of size {frame.shape[:2]}, expected {(h, w)}")
+                writer.send(np.ascontiguousarray(np.pad(frame, ((0, ph - h), (0, pw - w), (0, 0)))))
+        finally:
+            writer.close()
+    return Path(path)
 
 VIDEO_EPSILON = 0.05
 """Exploration of the filmed policy (a little noise keeps a greedy agent from freezing in a loop)."""
@@ -96,7 +129,7 @@ class Video:
 def record_video(task: str | None, out: str | Path, policy_path: str | Path | None = None, steps: int | None = None,
                  seed: int = 0, seed_index: int = 0, train_env: bool = False, epsilon: float = VIDEO_EPSILON,
                  episodes: int = VIDEO_EPISODES) -> Video:
-    """Write an MP4 of one rollout; return its path and how many episodes it shows solved.
+    """Write an H.264 MP4 of one rollout; return its path and how many episodes it shows solved.
 
     ``policy_path`` (a run directory, checkpoint or policy file) selects the trained policy (of seed number
     ``seed_index`` of a run); without it a uniform random policy acts. The film is ``steps`` steps long, or
@@ -105,7 +138,6 @@ def record_video(task: str | None, out: str | Path, policy_path: str | Path | No
     """
     import gymnasium as gym
 
-    from ecology import write_video
     from train.tasks import get_task
 
     policy = load_policy(policy_path, seed_index) if policy_path is not None else None
@@ -132,7 +164,6 @@ def record_video(task: str | None, out: str | Path, policy_path: str | Path | No
         fps = env.metadata.get("render_fps", 8)
     finally:
         env.close()
-    with atomic_path(out) as tmp:
-        write_video(film.frames, tmp, fps=fps)
+    write_h264(film.frames, out, fps=fps)
     return Video(Path(out), film.episodes, film.solved, film.total_return,
                  get_task(task).metric)

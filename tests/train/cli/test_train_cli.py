@@ -81,3 +81,22 @@ def test_cli_trains_a_tiny_run(tmp_path, capsys):
     assert code == 0
     assert "mean success over 1 seed(s)" in capsys.readouterr().err
     assert (tmp_path / "run" / "metrics.csv").exists()
+
+
+def test_train_uses_the_tasks_tuned_settings_unless_overridden():
+    from train.cli.train import train_config
+
+    def cfg_of(*argv):
+        return train_config(build_parser().parse_args(["train", *argv]))[0]
+
+    assert cfg_of("salad").dqn.lr == 3e-4  # the experiments' rate (TUNED), not TrainConfig's 1e-4
+    assert cfg_of("salad", "--lr", "1e-4").dqn.lr == 1e-4
+    assert cfg_of("hunting").dqn.lr == TrainConfig().dqn.lr
+
+
+def test_train_prints_the_tuned_settings(tmp_path, capsys):
+    code = main(["train", "salad", "--steps", "500", "--updates-per-epoch", "5", "--eval-every", "500",
+                 "--eval-rollouts", "1", "--eval-horizon", "5", "--buffer-size", "1000", "--no-progress",
+                 "--out", str(tmp_path / "run")])
+    assert code == 0
+    assert "tuned settings, as the experiments do: --lr 0.0003" in capsys.readouterr().err

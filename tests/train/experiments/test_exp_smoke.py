@@ -65,8 +65,10 @@ def test_headline_reports_have_videos_playable_in_browsers(report):
         for cond in EXPERIMENTS[name].conditions["salad"]:
             assert (root / name / "salad" / cond.name / "video.mp4").stat().st_size > 1000
     page = (root / "index.html").read_text()
-    assert page.count("<video") == 8 and page.count("video/webm") == 8
-    assert len(list((root / "figures" / "videos").glob("*.webm"))) == 8
+    assert page.count("<video") == 8 and page.count("type='video/mp4; codecs=") == 8
+    copies = list((root / "figures" / "videos").glob("*.mp4"))
+    assert len(copies) == 8 and all(b"avc1" in p.read_bytes()[:4096] for p in copies)  # H.264: browsers play it
+    assert len(list((root / "figures" / "videos").glob("*.png"))) == 8  # a poster (the middle frame) each
     assert not (root / "walls" / "walled-salad" / "no-shaping-episodic" / "video.mp4").exists()
 
 
@@ -85,4 +87,4 @@ def test_report_of_one_experiment_directory(smoke_root, cli, tmp_path):
     assert "## rnd (Fig. 6 (right))" in md and "static + RND" in md and "## walls" not in md
     assert (smoke_root / "rnd" / "figures" / "rnd_curves.png").exists()
     proc = cli("report", str(tmp_path), check=False)
-    assert proc.returncode == 2 and "holds no experiment results" in proc.stderr
+    assert proc.returncode == 2 and "is neither an experiment's results" in proc.stderr

@@ -1,9 +1,14 @@
-"""The report's figures: learning curves per task and visitation heat-maps, written as PNG atomically."""
+"""The report's figures: learning curves per task and visitation heat-maps, written as PNG atomically.
+
+Every figure gives a condition the same colour (`condition_color`, keyed by the condition's name), and a
+figure's bytes depend only on what it shows (no date or software version in the file).
+"""
 
 from __future__ import annotations
 
 import math
 import textwrap
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +21,23 @@ from train.fileio import atomic_file
 
 HEATMAP_POINTS = 4
 """Points of training shown in each heat-map row (the paper's Fig. 9-10 show four)."""
+
+CONDITION_COLORS = {"static-episodic": "#1f77b4", "static-reset-free": "#d62728",
+                    "dynamic-episodic": "#2ca02c", "dynamic-reset-free": "#ff7f0e"}
+"""The colour of each condition of the headline experiments in every figure and page (static non-episodic
+red: the condition the paper finds fails)."""
+
+OTHER_COLORS = ("#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#637939",
+                "#8c6d31", "#843c39", "#7b4173", "#3182bd")
+"""Colours of other conditions, chosen by a stable hash of the condition's name."""
+
+PNG_METADATA = {"Software": None}
+"""PNG metadata of every figure: none (matplotlib would otherwise write its version)."""
+
+
+def condition_color(name: str) -> str:
+    """The colour of condition ``name``, the same in every figure of every report."""
+    return CONDITION_COLORS.get(name) or OTHER_COLORS[zlib.crc32(name.encode()) % len(OTHER_COLORS)]
 
 
 def _pyplot():
@@ -49,9 +71,7 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     width = max(4.2 * ncols, 7.5)
     fig, axes = plt.subplots(nrows, ncols, figsize=(width, 3.4 * nrows + 1.2), squeeze=False,
                              layout="constrained")
-    palette = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    names = list(dict.fromkeys(r.condition for r in exp.runs))  # one color per condition, in every panel
-    color_of = {name: palette[i % len(palette)] for i, name in enumerate(names)}
+    color_of = {r.condition: condition_color(r.condition) for r in exp.runs}
     labels = {r.condition: set() for r in exp.runs}
     for r in exp.runs:
         labels[r.condition].add(r.label)
@@ -65,6 +85,8 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
             handles.setdefault(run.label, line)
             has_paper = has_paper or quoted
         _style_panel(ax, task, runs[0].metric, own_legend=not shared_legend)
+        if reference is not None:  # the live steps fill the panel; the shipped runs are drawn in full elsewhere
+            ax.set_xlim(0, max(int(r.steps[-1]) for r in runs) * 1.03)
     for ax in list(axes.flat)[len(tasks):]:
         ax.set_visible(False)
     if not shared_legend:
@@ -123,7 +145,7 @@ def _save_figure(fig, out: Path, dpi: int) -> None:
     """Write a figure as PNG atomically and close it."""
     try:
         with atomic_file(out) as f:
-            fig.savefig(f, format="png", dpi=dpi)
+            fig.savefig(f, format="png", dpi=dpi, metadata=PNG_METADATA)
     finally:
         _pyplot().close(fig)
 
@@ -138,27 +160,58 @@ def visit_snapshots(run_dir: Path, points: int = HEATMAP_POINTS) -> list[tuple[i
 
 
 def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
-    """Rows: conditions; columns: four points of training; cumulative visit counts summed over seeds."""
+    """Rows: conditions; columns: four points of training; the share of all visits so far in each cell
+    (summed over seeds), on one colour scale per row with its colour bar.
+    """
     rows = [(r, visit_snapshots(r.path)) for r in exp.runs if r.task == task]
     rows = [(r, snaps) for r, snaps in rows if snaps]
     if not rows:
         return None
     plt = _pyplot()
     ncols = max(len(s) for _, s in rows)
-    fig, axes = plt.subplots(len(rows), ncols, figsize=(2.3 * ncols + 1.6, 2.3 * len(rows) + 0.6), squeeze=False,
+    width = 2.3 * ncols + 3.2
+    fig, axes = plt.subplots(len(rows), ncols, figsize=(width, 2.3 * len(rows) + 0.8), squeeze=False,
                              layout="constrained")
     for (run, snaps), axrow in zip(rows, axes):
-        for ax, (step, counts) in zip(axrow, snaps):
-            ax.imshow(counts, cmap="viridis", interpolation="nearest")
+        shares = [counts / max(counts.sum(), 1) for _, counts in snaps]
+        top = max(float(x.max()) for x in shares) or 1.0
+        for ax, (step, _), share in zip(axrow, snaps, shares):
+            image = ax.imshow(share, cmap="viridis", interpolation="nearest", vmin=0.0, vmax=top)
             ax.set_title(f"step {step:,}", fontsize=8)
             ax.set_xticks([])
             ax.set_yticks([])
-        axrow[0].set_ylabel(run.label, fontsize=8)
+        axrow[0].set_ylabel(textwrap.fill(run.label, 24), fontsize=8, color=condition_color(run.condition))
         for ax in axrow[len(snaps):]:
             ax.set_visible(False)
-    width = 2.3 * ncols + 1.6
-    title = (f"{exp.info.get('paper', '')}: state visitation counts on {task} (cumulative, summed over seeds; "
-             f"yellow = often, purple = rarely)")
+        bar = fig.colorbar(image, ax=list(axrow[:len(snaps)]), shrink=0.85, pad=0.02)
+        bar.set_label("share of visits", fontsize=7)
+        bar.ax.tick_params(labelsize=7)
+    title = (f"{exp.info.get('paper', '')}: where the agent was on {task} (share of all visits so far per cell, "
+             f"summed over seeds; one colour scale per row)")
     fig.suptitle(textwrap.fill(title, int(width * 13)), fontsize=9)
     _save_figure(fig, out, dpi=100)
+    return out
+
+
+def plot_seed_curves(exp: ExperimentResults, out: Path) -> Path | None:
+    """A single run's learning curve per seed (each its own line, its last value in the legend), the mean
+    in the condition's colour.
+    """
+    if not exp.runs:
+        return None
+    run = exp.runs[0]
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 4.6), layout="constrained")
+    cmap = plt.get_cmap("tab10")
+    first = int(exp.info.get("first_seed", 0))
+    scale = 100.0 if run.metric == "success" else 1.0
+    for k in range(run.seeds):
+        last = run.values[-1, k] * scale
+        ax.plot(run.steps, run.values[:, k], color=cmap(k % 10), lw=1.0, alpha=0.8,
+                label=f"seed {first + k}: {last:.0f}{'%' if run.metric == 'success' else ''} at the end")
+    ax.plot(run.steps, run.values.mean(1), color=condition_color(run.condition), lw=2.4, label="mean over seeds")
+    _style_panel(ax, run.task, run.metric, own_legend=False)
+    ax.legend(fontsize=8, frameon=False, loc="upper left", ncol=2 if run.seeds > 5 else 1)
+    fig.suptitle(textwrap.fill(exp.info.get("title", exp.name), 90), fontsize=10)
+    _save_figure(fig, out, dpi=110)
     return out

@@ -23,14 +23,18 @@ from pathlib import Path
 from typing import Any
 
 from train.experiments.catalog import EXPERIMENTS
-from train.experiments.report.figures import plot_curves, plot_heatmaps, reference_label
+from train.experiments.report.figures import plot_curves, plot_heatmaps, plot_seed_curves, reference_label
+from train.experiments.report.lead import Lead, build_leads, lead_html, lead_markdown, lead_names, source_name
 from train.experiments.report.paper import load_paper
 from train.experiments.report.runs import (
+    REFERENCE_DIR,
     ExperimentResults,
     ReportError,
     find_experiment_dirs,
+    is_run_dir,
     load_experiment,
     load_reference,
+    load_single_run,
 )
 from train.experiments.report.stats import BOOTSTRAP_NOTE, DIVERGED_RULE
 from train.experiments.report.tables import (
@@ -41,7 +45,7 @@ from train.experiments.report.tables import (
     milestone_columns,
     milestone_rows,
 )
-from train.experiments.report.webvideo import find_videos, render_missing_videos, web_copy
+from train.experiments.report.webvideo import WebVideo, caption_of, find_videos, render_missing_videos, web_copy
 from train.experiments.sweep import EXPERIMENT_FILE
 from train.fileio import atomic_text
 
@@ -62,18 +66,26 @@ class Section:
     """Shipped paper-budget runs drawn dashed under this experiment's curves."""
 
 
-def build_sections(root: Path, videos: bool | None = None) -> list[Section]:
-    """Read every experiment under ``root``, draw its figures and compute its tables."""
+def load_all(source: Path) -> list[ExperimentResults]:
+    """The experiments under ``source``: one single-run experiment for an ``ecorl train`` run directory."""
+    if is_run_dir(source):
+        return [load_single_run(source)]
+    return [load_experiment(path) for path in find_experiment_dirs(source)]
+
+
+def build_sections(source: Path, out: Path, videos: bool | None = None) -> list[Section]:
+    """Read every experiment under ``source``, draw its figures into ``out/figures`` and compute its tables."""
     paper_all = load_paper()
     sections = []
-    for path in find_experiment_dirs(root):
-        exp = load_experiment(path)
+    for exp in load_all(source):
         paper = paper_all.get(exp.name, {})
         if videos or (videos is None and exp.info.get("videos")):
             render_missing_videos(exp)
-        figures = root / "figures"
-        reference = load_reference(exp)
-        curves = plot_curves(exp, paper, figures / f"{exp.name}_curves.png", reference)
+        figures = out / "figures"
+        single = exp.info.get("budget") == "ecorl train"
+        reference = None if single else load_reference(exp)
+        curves = (plot_seed_curves(exp, figures / f"{exp.name}_curves.png") if single
+                  else plot_curves(exp, paper, figures / f"{exp.name}_curves.png", reference))
         heatmaps = []
         if exp.info.get("heatmaps"):
             heatmaps = [p for t in exp.tasks if (p := plot_heatmaps(exp, t, figures / f"{exp.name}_{t}_heatmaps.png"))]
@@ -84,19 +96,27 @@ def build_sections(root: Path, videos: bool | None = None) -> list[Section]:
     return sections
 
 
-def _shown(path: Path) -> Path:
-    """``path`` relative to the working directory when it lies inside it (reports get copied around)."""
-    try:
-        return Path(path).resolve().relative_to(Path.cwd().resolve())
-    except ValueError:
-        return Path(path)
+def _shown(path: Path) -> str:
+    """How a page names a directory: relative to the working directory or to the repository when inside
+    them, else by its name alone (a page names no absolute path, so it reads the same on every machine).
+    """
+    path = Path(path).resolve()
+    for base in (Path.cwd().resolve(), REFERENCE_DIR.parents[2].resolve()):
+        try:
+            return path.relative_to(base).as_posix() or "."
+        except ValueError:
+            continue
+    return path.name
 
 
 def _budget_line(exp: ExperimentResults) -> str:
+    """The budget, the seeds and steps the runs reached, and the directory."""
     known = EXPERIMENTS.get(exp.name)
     budget = exp.info.get("budget", "?")
     paper_seeds = f"; the paper's budget is {known.paper_seeds} seeds" if known else ""
-    return f"Budget: `{budget}`{paper_seeds}. Directory: `{_shown(exp.path)}`."
+    seeds = "/".join(map(str, sorted({r.seeds for r in exp.runs})))
+    reached = f" ({seeds} seeds, up to {max(int(r.steps[-1]) for r in exp.runs):,} steps)" if exp.runs else ""
+    return f"Budget: `{budget}`{reached}{paper_seeds}. Directory: `{_shown(exp.path)}`."
 
 
 def _md_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]) -> list[str]:
@@ -106,43 +126,60 @@ def _md_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]
     return out
 
 
-def write_markdown(root: Path, sections: Sequence[Section]) -> Path:
-    """``report.md``: per experiment its figures, final results beside the paper's, and the paper's claims."""
-    lines = [f"# ecorl report: `{_shown(root)}`", "",
+LIVE_NOTE = ("the runs of this results directory (on this machine, usually shorter and with fewer seeds than the "
+             "shipped runs above, so their curves show the beginning of those).")
+"""What the page says between the shipped lead and the directory's own runs."""
+
+
+def write_markdown(source: Path, out: Path, sections: Sequence[Section], leads: Sequence[Lead] = ()) -> Path:
+    """``report.md``: the shipped lead, then per experiment its figures, final results beside the paper's,
+    and the paper's claims.
+    """
+    lines = [f"# ecorl report: `{_shown(source)}`", "",
              "Success = fraction of the 100 fixed validation layouts of the test MDP solved (food collector: mean "
              "return over validation episodes), at the last evaluation; mean over seeds with a 95% confidence "
              f"interval ({BOOTSTRAP_NOTE}). Seeds diverged: {DIVERGED_RULE}. Paper column: **≈** a value read "
              "from a figure or quoted in the paper's text (approximate), **=** a value from a table (exact), — "
              "the paper reports no number.", ""]
+    lines += lead_markdown(list(leads), out, _md_table)
+    if leads:
+        lines += [f"**Below: {LIVE_NOTE}**", ""]
     for s in sections:
-        info = s.exp.info
-        lines += [f"## {s.exp.name} ({info.get('paper', '')}): {info.get('title', '')}", "",
-                  info.get("description", ""), "", _budget_line(s.exp), ""]
-        if s.curves:
-            lines += [f"![learning curves]({s.curves.relative_to(root).as_posix()})", ""]
-        if s.curves and s.reference:
-            lines += [f"Dashed: the mean of the {reference_label(s.reference).replace(' (dashed)', '')} shipped in "
-                      f"`{_shown(s.reference.path)}` (re-draw it with `ecorl report {_shown(s.reference.path)}`).", ""]
-        for h in s.heatmaps:
-            lines += [f"![visitation heat-maps]({h.relative_to(root).as_posix()})", ""]
-        if s.finals:
-            unfinished = [r for r in s.finals if not r["done"]]
-            lines += _md_table(s.finals, FINAL_COLUMNS) + [""]
-            if unfinished:
-                lines += [f"{len(unfinished)} run(s) not finished yet (their latest evaluation is shown); "
-                          f"re-run the same `ecorl run` command to complete them.", ""]
-        if s.milestones:
-            lines += _md_table(s.milestones, milestone_columns(s.exp)) + [""]
-        if s.measures:
-            lines += _md_table(s.measures, MEASUREMENT_COLUMNS) + [""]
-        if s.claims:
-            lines += ["What the paper reports:", ""]
-            lines += [f"- {c['text']} ({c['figure']}{', ' + c['task'] if c.get('task') else ''})" for c in s.claims]
-            lines += [""]
-        for src in s.sources:
-            if src.get("note"):
-                lines += [f"*{src['figure']}: {src['note']}*", ""]
-    return atomic_text(root / "report.md", "\n".join(lines).rstrip() + "\n")
+        lines += _section_markdown(s, out)
+    return atomic_text(out / "report.md", "\n".join(lines).rstrip() + "\n")
+
+
+def _section_markdown(s: Section, out: Path) -> list[str]:
+    """One experiment's part of report.md."""
+    info = s.exp.info
+    lines = [f"## {s.exp.name} ({info.get('paper', '')}): {info.get('title', '')}", "",
+             info.get("description", ""), "", _budget_line(s.exp), ""]
+    if s.curves:
+        lines += [f"![learning curves]({s.curves.relative_to(out).as_posix()})", ""]
+    if s.curves and s.reference:
+        lines += [f"Dashed: the mean of the {reference_label(s.reference).replace(' (dashed)', '')} shipped in "
+                  f"`{source_name(s.reference.path)}` (re-draw it with `ecorl report "
+                  f"{source_name(s.reference.path)}`).", ""]
+    for h in s.heatmaps:
+        lines += [f"![visitation heat-maps]({h.relative_to(out).as_posix()})", ""]
+    if s.finals:
+        unfinished = [r for r in s.finals if not r["done"]]
+        lines += _md_table(s.finals, FINAL_COLUMNS) + [""]
+        if unfinished:
+            lines += [f"{len(unfinished)} run(s) not finished yet (their latest evaluation is shown); "
+                      f"re-run the same command to complete them.", ""]
+    if s.milestones:
+        lines += _md_table(s.milestones, milestone_columns(s.exp)) + [""]
+    if s.measures:
+        lines += _md_table(s.measures, MEASUREMENT_COLUMNS) + [""]
+    if s.claims:
+        lines += ["What the paper reports:", ""]
+        lines += [f"- {c['text']} ({c['figure']}{', ' + c['task'] if c.get('task') else ''})" for c in s.claims]
+        lines += [""]
+    for src in s.sources:
+        if src.get("note"):
+            lines += [f"*{src['figure']}: {src['note']}*", ""]
+    return lines
 
 
 def _html_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]) -> str:
@@ -152,70 +189,112 @@ def _html_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def write_html(root: Path, sections: Sequence[Section], videos: Sequence[Path]) -> Path:
-    """``index.html``: the report as one static page, with the videos."""
-    parts = ["<!doctype html><html><head><meta charset='utf-8'><title>ecorl report</title><style>",
-             "body{font-family:sans-serif;max-width:1400px;margin:auto;padding:1em}img{max-width:100%}"
-             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;"
-             "font-size:90%}video{width:260px;margin:4px}figure{display:inline-block;margin:4px}"
-             "figcaption{font-size:80%;max-width:260px}",
-             "</style></head><body>", f"<h1>ecorl report</h1><p><code>{html.escape(str(root))}</code> — "
+STYLE = ("body{font-family:sans-serif;max-width:1400px;margin:auto;padding:1em}img{max-width:100%}"
+         "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;font-size:90%}"
+         "video{width:300px;margin:4px;background:#000}figure{display:inline-block;margin:4px;vertical-align:top}"
+         "figcaption{font-size:80%;max-width:300px}.lead{border:2px solid #888;padding:0 1em;margin:1em 0}"
+         ".claim{font-size:110%}")
+"""The page's style sheet."""
+
+
+def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Sequence[WebVideo],
+               leads: Sequence[Lead] = ()) -> Path:
+    """``index.html``: the report as one static page: the shipped lead, then each experiment and its videos."""
+    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>ecorl report</title><style>{STYLE}"
+             "</style></head><body>", f"<h1>ecorl report</h1><p><code>{html.escape(_shown(source))}</code> — "
              "also as <a href='report.md'>report.md</a>. Intervals: 95%, " + html.escape(BOOTSTRAP_NOTE) + ". "
              "Seeds diverged: " + html.escape(DIVERGED_RULE) + ". Paper column: ≈ approximate (figure or text), "
-             "= exact (table).</p>"]
+             "= exact (table).</p>", lead_html(list(leads), out, _html_table)]
+    if leads:
+        parts.append(f"<p class='claim'><b>Below: {html.escape(LIVE_NOTE)}</b></p>")
+    shown = set()
     for s in sections:
         info = s.exp.info
         parts.append(f"<h2>{html.escape(s.exp.name)} ({html.escape(info.get('paper', ''))}): "
                      f"{html.escape(info.get('title', ''))}</h2><p>{html.escape(info.get('description', ''))}</p>"
                      f"<p>{html.escape(_budget_line(s.exp).replace('`', ''))}</p>")
         for img in ([s.curves] if s.curves else []) + s.heatmaps:
-            parts.append(f"<p><img src='{html.escape(img.relative_to(root).as_posix())}'></p>")
-        if s.finals:
-            parts.append(_html_table(s.finals, FINAL_COLUMNS))
-        if s.milestones:
-            parts.append(_html_table(s.milestones, milestone_columns(s.exp)))
-        if s.measures:
-            parts.append(_html_table(s.measures, MEASUREMENT_COLUMNS))
+            parts.append(f"<p><img src='{html.escape(img.relative_to(out).as_posix())}' alt='{img.stem}'></p>")
+        for rows, columns in ((s.finals, FINAL_COLUMNS), (s.milestones, milestone_columns(s.exp)),
+                              (s.measures, MEASUREMENT_COLUMNS)):
+            if rows:
+                parts.append(_html_table(rows, columns))
         if s.claims:
             parts.append("<p>What the paper reports:</p><ul>" + "".join(
                 f"<li>{html.escape(c['text'])} ({html.escape(c['figure'])})</li>" for c in s.claims) + "</ul>")
-        mine = [v for v in videos if s.exp.path in v.parents]
-        parts += [_video_tag(root, v) for v in mine]
-    loose = [v for v in videos if not any(s.exp.path in v.parents for s in sections)]
+        mine = [v for v in videos if s.exp.path in v.source.parents]
+        parts += [_video_tag(out, v) for v in mine]
+        shown.update(v.mp4 for v in mine)
+    loose = [v for v in videos if v.mp4 not in shown]
     if loose:
-        parts.append("<h2>Videos</h2>" + "".join(_video_tag(root, v) for v in loose))
+        parts.append("<h2>Videos</h2>" + "".join(_video_tag(out, v) for v in loose))
     parts.append("</body></html>")
-    return atomic_text(root / "index.html", "\n".join(parts))
+    return atomic_text(out / "index.html", "\n".join(parts) + "\n")
 
 
-def _video_tag(root: Path, video: Path) -> str:
-    """A captioned <video> with a WebM copy (plays in browsers) and the original MP4."""
-    rel = video.relative_to(root).as_posix()
-    web = web_copy(video, root / "figures" / "videos", root)
-    sources = (f"<source src='{html.escape(web.relative_to(root).as_posix())}' type='video/webm'>" if web else "")
-    sources += f"<source src='{html.escape(rel)}' type='video/mp4'>"
-    caption = html.escape(str(Path(rel).parent) if video.name == "video.mp4" else rel)
-    return (f"<figure><video controls loop muted>{sources}</video>"
-            f"<figcaption>{caption} (<a href='{html.escape(rel)}'>mp4</a>)</figcaption></figure>")
+def _video_tag(out: Path, video: WebVideo) -> str:
+    """A captioned H.264 <video> whose poster is its middle frame."""
+    src = html.escape(video.mp4.relative_to(out).as_posix())
+    poster = html.escape(video.poster.relative_to(out).as_posix())
+    return (f"<figure><video controls loop muted preload='metadata' poster='{poster}'>"
+            f"<source src='{src}' type='video/mp4; codecs=\"avc1.42E01E\"'></video>"
+            f"<figcaption>{html.escape(video.caption)} (<a href='{src}'>mp4</a>)</figcaption></figure>")
 
 
-def make_report(root: str | Path, videos: bool | None = None) -> list[Path]:
-    """Write the figures, ``report.md`` and ``index.html`` for the results under ``root``; return their paths.
-
-    ``videos``: True renders missing rollout videos for every finished run, False for none, None only
-    for experiments that ask for them (the headline experiment).
+def web_videos(source: Path, out: Path, sections: Sequence[Section]) -> list[WebVideo]:
+    """H.264 copies (with posters and captions) in ``out/figures/videos`` of every video under ``source``;
+    a caption names the video's place from its experiment's directory on (or from ``source`` for loose ones).
     """
-    root = Path(root).resolve()
-    if not root.is_dir():
+    made = []
+    for video in find_videos(source):
+        if out / "figures" in video.parents:  # the report's own copies
+            continue
+        owner = next((s.exp.path for s in sections if s.exp.path in video.parents), None)
+        name = "_".join(video.relative_to(source).with_suffix("").parts)
+        web = web_copy(video, out / "figures" / "videos", name,
+                       caption_of(video, owner.parent if owner else source), video)
+        if web is not None:
+            made.append(web)
+    return made
+
+
+def default_out(source: Path) -> Path:
+    """Where a report of ``source`` goes unless told: ``source`` itself, except for a shipped result
+    (``docs/results/paper/NAME``), which is re-drawn into ``results/report/NAME`` (tracked files stay as they are);
+    for an ``ecorl train`` run directory, its ``report/`` folder.
+    """
+    source = Path(source).resolve()
+    try:
+        source.relative_to(REFERENCE_DIR.resolve())
+        return Path("results") / "report" / source.name
+    except ValueError:
+        pass
+    return source / "report" if is_run_dir(source) else source
+
+
+def make_report(root: str | Path, videos: bool | None = None, out: str | Path | None = None) -> list[Path]:
+    """Write the figures, ``report.md`` and ``index.html`` of the results under ``root`` into ``out`` (default:
+    `default_out`); return the paths written.
+
+    ``root`` is an experiment directory, a directory of them, or an ``ecorl train`` run directory. ``videos``:
+    True films missing rollout videos for every finished run, False none, None only for experiments that ask
+    for them (the headline experiments, single runs).
+    """
+    source = Path(root).resolve()
+    if not source.is_dir():
         raise FileNotFoundError(f"no results directory {root}")
+    target = Path(out if out is not None else default_out(source)).resolve()
     for name in ("figures", "report.md", "index.html"):
-        if (root / name).is_symlink():
-            raise ReportError(f"{root / name} is a symbolic link; the report writes only inside {root}: remove it")
-    sections = build_sections(root, videos)
+        if (target / name).is_symlink():
+            raise ReportError(f"{target / name} is a symbolic link; the report writes only inside {target}: remove it")
+    sections = build_sections(source, target, videos)
     if not sections:
-        raise FileNotFoundError(f"{root} holds no experiment results ({EXPERIMENT_FILE} not found in it or in its "
-                                f"subdirectories); run `ecorl run EXPERIMENT --out {root}` first")
-    md = write_markdown(root, sections)
-    page = write_html(root, sections, find_videos(root))
-    written = [p for s in sections for p in ([s.curves] if s.curves else []) + s.heatmaps]
+        raise ReportError(f"{root} is neither an experiment's results ({EXPERIMENT_FILE} not found in it or in "
+                          f"its subdirectories) nor an ecorl train run directory (config.json and metrics.csv); "
+                          f"give a directory written by `ecorl run EXPERIMENT --out DIR` or by `ecorl train`")
+    leads = build_leads(lead_names([s.exp.name for s in sections], source), target, load_paper())
+    md = write_markdown(source, target, sections, leads)
+    page = write_html(source, target, sections, web_videos(source, target, sections), leads)
+    written = [lead.figure for lead in leads]
+    written += [p for s in sections for p in ([s.curves] if s.curves else []) + s.heatmaps]
     return [*written, md, page]

@@ -199,3 +199,39 @@ def load_reference(exp: ExperimentResults, reference_dir: Path | None = None) ->
         return None
     reference = load_experiment(path)
     return reference if reference.runs else None
+
+
+def is_run_dir(path: Path) -> bool:
+    """True for an ``ecorl train`` run directory (config.json and metrics.csv, no experiment.json)."""
+    files = (path / "config.json").is_file() and (path / "metrics.csv").is_file()
+    return files and not (path / EXPERIMENT_FILE).exists()
+
+
+def load_single_run(path: Path) -> ExperimentResults:
+    """An ``ecorl train`` run directory as an experiment of one condition (named from its knobs, so it gets
+    the same colour as that condition in the experiments' figures).
+    """
+    from train.config import TrainConfig
+
+    try:
+        cfg = TrainConfig.from_dict(json.loads((path / "config.json").read_text()))
+    except (ValueError, TypeError, KeyError) as err:
+        raise ReportError(f"{path / 'config.json'} is not a training configuration ({err})") from None
+    env = cfg.env
+    condition = f"{'dynamic' if env.dynamism else 'static'}-{'reset-free' if env.reset_free else 'episodic'}"
+    label = (f"{'dynamic p=' + format(env.dynamism, 'g') if env.dynamism else 'static'}, "
+             f"{'non-episodic' if env.reset_free else 'episodic'}, {env.reward} reward, lr {cfg.dqn.lr:g}"
+             + (f", shaping {env.shaping}" if env.shaping not in ("0", "0.0") else ""))
+    metric = task_metric(env.task)
+    steps, values = read_metrics(path / "metrics.csv", metric)
+    info = {"name": path.name, "paper": "ecorl train", "title": f"{env.task}: {label}",
+            "description": f"One training run: {cfg.run.seeds} seed(s) x {cfg.total_steps:,} steps "
+                           f"(first seed {cfg.run.first_seed}).",
+            "heatmaps": True, "videos": True, "budget": "ecorl train", "milestones": [],
+            "first_seed": cfg.run.first_seed,
+            "tasks": {env.task: [{"name": condition, "label": label}]}}
+    result = ExperimentResults(path.name, path, info)
+    if len(steps):
+        done = int(steps[-1]) >= cfg.total_steps
+        result.runs.append(Run(env.task, condition, label, path, metric, steps, values, done))
+    return result

@@ -1,20 +1,56 @@
-"""Rollout videos for the report: render the missing ones, and re-encode MP4s to WebM for browsers."""
+"""Rollout videos for the report: film the best seed of finished runs, and give the page H.264 copies with
+a poster frame and a caption.
+
+A filmed run directory holds ``video.mp4`` and ``video.json`` (which seed, episodes filmed and solved). The
+page never points into the run directories: each video is re-encoded as H.264 MP4 (plays in every browser)
+into the report's own ``figures/videos/`` beside a PNG of its middle frame, so the page can be copied anywhere.
+"""
 
 from __future__ import annotations
 
-import os
+import json
 import sys
-from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from train.checkpoint import CHECKPOINT_NAME
-from train.experiments.report.runs import ExperimentResults
-from train.fileio import atomic_path, is_temporary
+from train.experiments.report.runs import ExperimentResults, Run
+from train.fileio import atomic_text, atomic_write, is_temporary
+
+VIDEO_INFO = "video.json"
+"""Sidecar of a filmed run's ``video.mp4``: the seed filmed and the episodes solved."""
+
+
+def best_seed(run: Run) -> int:
+    """Index of the seed with the highest last evaluation (the first of equals)."""
+    return int(np.argmax(run.values[-1])) if run.values.size else 0
+
+
+def film_best_seed(run: Run, target: Path) -> Path:
+    """Film the best seed of ``run`` (its final policy in the test MDP) into ``target``, with its sidecar."""
+    from train.experiments.video import record_video
+
+    index = best_seed(run)
+    video = record_video(None, target, policy_path=run.path, seed_index=index)
+    first = _first_seed(run.path)
+    info = {"seed": first + index, "episodes": video.episodes, "solved": video.solved, "metric": video.metric,
+            "summary": video.summary(), "final": float(run.values[-1][index])}
+    atomic_text(target.with_name(VIDEO_INFO), json.dumps(info, indent=2) + "\n")
+    return video.path
+
+
+def _first_seed(run_dir: Path) -> int:
+    """The run's first seed number (0 when config.json does not say)."""
+    try:
+        return int(json.loads((run_dir / "config.json").read_text())["run"]["first_seed"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return 0
 
 
 def render_missing_videos(exp: ExperimentResults) -> list[Path]:
-    """Render ``video.mp4`` (seed 0's final policy in the test MDP) for finished runs without one."""
-    from train.experiments.video import record_video
+    """Film the best seed of every finished run that has a checkpoint and no ``video.mp4`` yet."""
     from train.rundir import RunDirError
 
     made = []
@@ -22,74 +58,65 @@ def render_missing_videos(exp: ExperimentResults) -> list[Path]:
         target = run.path / "video.mp4"
         if run.done and not target.exists() and (run.path / CHECKPOINT_NAME).exists():
             try:
-                made.append(record_video(None, target, policy_path=run.path).path)
+                made.append(film_best_seed(run, target))
             except (RunDirError, ValueError, FileNotFoundError) as err:
                 print(f"ecorl report: no video of {run.path}: {err}", file=sys.stderr)
     return made
 
 
 def find_videos(root: Path) -> list[Path]:
-    """Every MP4 below ``root`` (run directories and the top level), sorted."""
-    return sorted(p for p in root.rglob("*.mp4") if ".partial" not in p.name and not is_temporary(p.name))
+    """Every MP4 below ``root`` (run directories and the top level) except the report's own copies, sorted."""
+    return sorted(p for p in root.rglob("*.mp4") if ".partial" not in p.name and not is_temporary(p.name)
+                  and "figures" not in p.relative_to(root).parts[:1])
 
 
-@contextmanager
-def _quiet_stderr():
-    """Silence the process's stderr (file descriptor 2, so C libraries too) inside the block."""
-    sys.stderr.flush()
-    saved = os.dup(2)
+@dataclass(frozen=True)
+class WebVideo:
+    """A video as the page shows it: an H.264 copy, its poster frame and a caption."""
+
+    mp4: Path
+    poster: Path
+    caption: str
+    source: Path
+    """The video it copies."""
+
+
+def caption_of(video: Path, root: Path) -> str:
+    """Where the video comes from and, from its sidecar, the seed filmed and how its episodes went."""
+    where = video.parent.relative_to(root).as_posix() if video.name == "video.mp4" else video.name
     try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 2)
-            yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
+        info = json.loads(video.with_name(VIDEO_INFO).read_text()) if video.name == "video.mp4" else {}
+    except (OSError, ValueError):
+        info = {}
+    if not isinstance(info, dict) or "seed" not in info:
+        return where
+    return f"{where}: seed {info['seed']} (the best), {info.get('summary', '')}".rstrip(", ")
 
 
-def web_copy(video: Path, out_dir: Path, root: Path) -> Path | None:
-    """A WebM (VP8) copy of an MP4 for the HTML page (OpenCV's MP4 codec does not play in browsers)."""
+def web_copy(video: Path, out_dir: Path, name: str, caption: str, source: Path | None = None) -> WebVideo | None:
+    """Re-encode ``video`` as ``out_dir/name.mp4`` (H.264) with ``name.png``, its middle frame; None if
+    the video cannot be read.
+    """
     import cv2
 
-    name = "_".join(video.relative_to(root).with_suffix("").parts) + ".webm"
-    target = out_dir / name
-    if target.exists() and target.stat().st_mtime >= video.stat().st_mtime:
-        return target
+    from train.experiments.video import write_h264
+
     cap = cv2.VideoCapture(str(video))
     try:
-        with atomic_path(target) as tmp:
-            if not _transcode(cap, tmp):
-                raise _NoFrames
-    except _NoFrames:
-        return None
-    finally:
-        cap.release()
-    return target
-
-
-class _NoFrames(Exception):
-    """A video that could not be read or re-encoded (its web copy is skipped)."""
-
-
-def _transcode(cap, out: Path) -> bool:
-    """Re-encode every frame of an opened capture to a VP8 WebM at ``out``; False if nothing was written."""
-    import cv2
-
-    fps = cap.get(cv2.CAP_PROP_FPS) or 8.0
-    writer = None
-    try:
+        fps = cap.get(cv2.CAP_PROP_FPS) or 8.0
+        frames = []
         while True:
             ok, frame = cap.read()
             if not ok:
                 break
-            if writer is None:
-                with _quiet_stderr():  # FFMPEG names its tag fallback on stderr; the file is fine
-                    writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"VP80"), fps,
-                                             (frame.shape[1], frame.shape[0]))
-                if not writer.isOpened():
-                    return False
-            writer.write(frame)
+            frames.append(frame[:, :, ::-1])
     finally:
-        if writer is not None:
-            writer.release()
-    return writer is not None
+        cap.release()
+    if not frames:
+        return None
+    mp4 = write_h264(frames, out_dir / f"{name}.mp4", fps=fps)
+    ok, png = cv2.imencode(".png", np.ascontiguousarray(frames[len(frames) // 2][:, :, ::-1]))
+    if not ok:
+        return None
+    poster = atomic_write(out_dir / f"{name}.png", png.tobytes())
+    return WebVideo(mp4, poster, caption, source or video)

@@ -1,0 +1,76 @@
+"""Progress under ``ecorl run``: heartbeats from the processes that train, one line per running job, and runs
+sized to a time budget from this machine's measured speed.
+"""
+
+from __future__ import annotations
+
+import json
+
+from train.cli import main
+from train.config import TrainConfig
+from train.experiments.catalog import get_experiment
+from train.experiments.jobs import Job
+from train.experiments.sweep import plan, progress_line
+from train.experiments.timebox import Speed, fit_steps, resize_jobs
+from train.runlog import PROGRESS_FILE, heartbeat_to, read_heartbeat
+
+TINY = TrainConfig().replace(task="salad", steps=1200, updates_per_epoch=5, eval_every=500, eval_rollouts=2,
+                             eval_horizon=10, buffer_size=2000, progress=False)
+
+
+def test_a_trainer_under_heartbeat_to_writes_its_progress(tmp_path):
+    from train.trainer import Trainer
+
+    path = tmp_path / PROGRESS_FILE
+    trainer = Trainer(TINY)
+    with heartbeat_to(path):
+        trainer.run()
+    trainer.close()
+    beat = read_heartbeat(path)
+    assert beat["step"] == beat["total"] == TINY.total_steps and beat["steps_per_s"] > 0
+    assert "success" in beat["latest"]
+
+
+def test_no_heartbeat_without_heartbeat_to(tmp_path, monkeypatch):
+    from train.trainer import Trainer
+
+    monkeypatch.chdir(tmp_path)
+    trainer = Trainer(TINY.replace(steps=700))
+    trainer.run()
+    trainer.close()
+    assert not list(tmp_path.rglob(PROGRESS_FILE))
+
+
+def test_progress_line_shows_steps_rate_eta_and_the_last_evaluation(tmp_path):
+    job = Job("headline", "salad", "static-reset-free", str(tmp_path), {}, 1.0)
+    assert "starting" in progress_line(job, began=0.0)
+    (tmp_path / PROGRESS_FILE).write_text(json.dumps({"step": 25_000, "total": 100_200, "steps_per_s": 212.4,
+                                                      "eta_s": 354, "latest": {"success": "0.03"}, "time": 10.0}))
+    line = progress_line(job, began=5.0)
+    assert "25,000/100,200 steps (25%)" in line and "212 steps/s" in line and "ETA 5 min 54 s" in line
+    assert "last success 0.03" in line
+    assert "starting" in progress_line(job, began=100.0)  # a heartbeat older than this sweep is not shown
+
+
+def test_fit_steps_sizes_runs_to_the_time_budget():
+    jobs = plan(get_experiment("headline-waypoint"), "quick", "/nonexistent", conditions=["static-reset-free",
+                                                                                          "dynamic-reset-free"])
+    speed = Speed(startup_s=5.0, random_epoch_s=1.0, greedy_epoch_s=2.0, evaluation_s=1.0)
+    config = jobs[0].config
+    short, longer = fit_steps(speed, config, 2, 2, 200), fit_steps(speed, config, 2, 2, 400)
+    assert 10_000 <= short < longer <= 100_000 and short % 10_000 == 0
+    assert fit_steps(speed, config, 2, 1, 400) < longer  # one worker: the runs take turns
+    assert fit_steps(speed, config, 2, 2, 10**6) == 100_000  # never past the budget's own steps
+    cfg = TrainConfig.from_dict(config)
+    assert speed.run_seconds(cfg.replace(steps=short)) <= 200 < speed.run_seconds(cfg.replace(steps=short + 10_000))
+    resized = resize_jobs(jobs, short)
+    assert all(TrainConfig.from_dict(j.config).run.steps == short for j in resized)
+
+
+def test_run_with_minutes_measures_the_machine_and_sizes_the_runs(tmp_path, capsys):
+    code = main(["run", "headline-waypoint", "--budget", "smoke", "--condition", "static-reset-free",
+                 "--minutes", "3", "--out", str(tmp_path), "--dry-run"])
+    assert code == 0
+    err = capsys.readouterr()
+    assert "steps/s per seed" in err.err and "steps per seed (predicted" in err.err
+    assert "1 runs" in err.err and "[   new]" in err.out

@@ -1,0 +1,109 @@
+"""Reports a newcomer can trust: single runs, byte-stable re-draws of shipped results, H.264 videos, one colour
+per condition, and a page that leads with the shipped paper-budget panels.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import pytest
+
+from train.cli import main
+from train.experiments.report import make_report
+from train.experiments.report.figures import CONDITION_COLORS, condition_color
+from train.experiments.report.pages import default_out
+from train.experiments.report.runs import REFERENCE_DIR
+
+TINY = ["--steps", "1000", "--updates-per-epoch", "20", "--eval-every", "500", "--eval-rollouts", "3",
+        "--eval-horizon", "20", "--buffer-size", "2000", "--seeds", "2", "--no-progress"]
+
+
+def _digests(folder: Path) -> dict[str, str]:
+    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_report_of_a_single_train_run(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["train", "salad", "--dynamism", "0.1", "--reset-free", *TINY, "--out", str(run)]) == 0
+    assert main(["report", str(run)]) == 0
+    out = run / "report"
+    page = (out / "index.html").read_text()
+    assert (out / "figures" / "run_curves.png").stat().st_size > 10_000
+    assert (out / "figures" / "run_salad_heatmaps.png").exists()
+    videos = list((out / "figures" / "videos").glob("*.mp4"))
+    assert len(videos) == 1 and b"avc1" in videos[0].read_bytes()[:4096]  # H.264, which browsers play
+    assert videos[0].with_suffix(".png").exists()  # its poster: the middle frame
+    assert "seed " in page and "(the best)" in page and "episode(s) filmed" in page
+    assert str(tmp_path) not in page and str(tmp_path) not in (out / "report.md").read_text()
+
+
+def test_report_of_a_directory_that_is_neither_says_what_it_takes(tmp_path, capsys):
+    (tmp_path / "notes.txt").write_text("hello")
+    assert main(["report", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "neither an experiment's results" in err and "ecorl train run directory" in err
+
+
+def test_redrawing_a_shipped_result_is_byte_stable_and_leaves_it_alone(tmp_path):
+    shipped = REFERENCE_DIR / "headline"
+    before = _digests(shipped)
+    first, second = tmp_path / "a", tmp_path / "b"
+    make_report(shipped, videos=False, out=first)
+    make_report(shipped, videos=False, out=second)
+    assert _digests(first) == _digests(second) and _digests(first)
+    assert _digests(shipped) == before
+    for text in ((first / "index.html").read_text(), (first / "report.md").read_text()):
+        assert str(tmp_path) not in text and str(Path.cwd()) not in text and "/home/" not in text
+
+
+def test_a_shipped_result_is_redrawn_outside_the_tracked_folder():
+    assert default_out(REFERENCE_DIR / "headline") == Path("results") / "report" / "headline"
+    assert default_out(Path("somewhere") / "results").name == "results"
+
+
+def test_one_colour_per_condition_everywhere():
+    assert len(set(CONDITION_COLORS.values())) == len(CONDITION_COLORS)
+    assert condition_color("dynamic-reset-free") == CONDITION_COLORS["dynamic-reset-free"]
+    assert condition_color("rf-lr3e-4") == condition_color("rf-lr3e-4")
+
+
+@pytest.mark.parametrize("name", ["headline", "headline-waypoint"])
+def test_a_headline_page_leads_with_the_shipped_paper_budget_panels(tmp_path, name):
+    import json
+
+    from train.experiments.catalog import get_experiment
+    from train.experiments.sweep import EXPERIMENT_FILE
+
+    exp = get_experiment(name)
+    root = tmp_path / "results" / name
+    root.mkdir(parents=True)
+    (root / EXPERIMENT_FILE).write_text(json.dumps({**exp.describe(), "budget": "quick"}))
+    run = root / "salad" / "static-reset-free"
+    run.mkdir(parents=True)
+    (run / "metrics.csv").write_text("step,seed,epsilon,loss,success,return,train_reward,steps_per_s\n"
+                                     "5000,0,1,0,0.0,0,0,1\n5000,1,1,0,0.1,0,0,1\n")
+    make_report(root, videos=False)
+    md = (root / "report.md").read_text()
+    assert md.index("At the paper's budget") < md.index(f"## {name} (")
+    assert "static non-episodic: 0.3% [0.0, 0.6], 0 / 10 seeds learned (paper ≈ 0%)" in md  # sparse headline
+    assert (root / "figures" / "shipped_headline_curves.png").exists()
+
+
+def test_videos_are_h264_padded_to_even_sizes_and_byte_stable(tmp_path):
+    import cv2
+    import numpy as np
+
+    from train.experiments.video import write_h264
+
+    frames = [np.full((33, 41, 3), 7 * i, np.uint8) for i in range(12)]
+    a, b = write_h264(frames, tmp_path / "a.mp4", fps=8), write_h264(frames, tmp_path / "b.mp4", fps=8)
+    assert a.read_bytes() == b.read_bytes() and b"avc1" in a.read_bytes()[:4096]
+    cap = cv2.VideoCapture(str(a))
+    ok, frame = cap.read()
+    cap.release()
+    assert ok and frame.shape[:2] == (34, 42)
+    with pytest.raises(ValueError, match="frame of size"):
+        write_h264([frames[0], np.zeros((10, 10, 3), np.uint8)], tmp_path / "c.mp4")
+    assert not (tmp_path / "c.mp4").exists()

@@ -1,0 +1,145 @@
+"""What a page shows first: the shipped paper-budget runs of its experiment, re-drawn, with their numbers.
+
+A quick or time-boxed run shows only the first part of the paper's curves; the page of the headline
+experiments therefore leads with the shipped 10-seed x 1 M-step panels (``docs/results/paper``) and one
+sentence of the claim: static non-episodic fails, dynamic non-episodic learns.
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from train.experiments.report import runs
+from train.experiments.report.figures import plot_curves
+from train.experiments.report.runs import ExperimentResults, load_experiment
+from train.experiments.report.stats import LEARNED, summarize
+from train.experiments.report.tables import FINAL_COLUMNS, final_rows
+from train.experiments.sweep import EXPERIMENT_FILE
+
+LEAD = {"headline": ("headline", "headline-waypoint"), "headline-waypoint": ("headline", "headline-waypoint")}
+"""Experiment -> the shipped experiments its page leads with."""
+
+CONTRAST = ("static-reset-free", "dynamic-reset-free")
+"""The two conditions of the paper's claim: without resets, a static world fails and a dynamic one learns."""
+
+
+@dataclass
+class Lead:
+    """A shipped experiment as the page's lead shows it."""
+
+    exp: ExperimentResults
+    figure: Path
+    rows: list[dict[str, Any]]
+    sentence: str
+
+
+def source_name(path: Path) -> str:
+    """A shipped experiment's directory as the repository names it (docs/results/paper/NAME)."""
+    root = runs.REFERENCE_DIR.parents[2]
+    try:
+        return path.resolve().relative_to(root.resolve()).as_posix()
+    except ValueError:
+        return path.name
+
+
+def contrast_sentence(exp: ExperimentResults, paper: dict) -> str:
+    """'static non-episodic: 0.3% [..], 0 / 10 learned; dynamic non-episodic: ... (paper ≈ 0% and ≈ 70%)', or ''
+    when the experiment lacks either condition.
+    """
+    from train.experiments.report.paper import paper_value
+
+    runs = {r.condition: r for r in exp.runs}
+    if not all(c in runs for c in CONTRAST):
+        return ""
+    parts = []
+    for name in CONTRAST:
+        run = runs[name]
+        ours, learned = summarize(run.values[-1], run.metric)
+        ref = paper_value(paper, run.task, name)
+        quoted = f" (paper ≈ {ref['value']:.0%})" if ref else ""
+        parts.append(f"{name.replace('-reset-free', ' non-episodic')}: {ours}, {learned} seeds learned{quoted}")
+    step = int(max(runs[c].steps[-1] for c in CONTRAST))
+    return f"At {step:,} steps, " + "; ".join(parts) + f" (learned: > {LEARNED:.0%} of the layouts solved)."
+
+
+def build_leads(names: list[str], out: Path, paper_all: dict) -> list[Lead]:
+    """Re-draw the shipped experiments ``names`` (those shipped with runs) into ``out/figures``."""
+    leads = []
+    for name in names:
+        path = runs.REFERENCE_DIR / name
+        if not (path / EXPERIMENT_FILE).exists():
+            continue
+        exp = load_experiment(path)
+        if not exp.runs:
+            continue
+        paper = paper_all.get(name, {})
+        figure = plot_curves(exp, paper, out / "figures" / f"shipped_{name}_curves.png")
+        if figure is not None:
+            leads.append(Lead(exp, figure, final_rows(exp, paper), contrast_sentence(exp, paper)))
+    return leads
+
+
+def lead_names(experiments: list[str], source: Path) -> list[str]:
+    """The shipped experiments a page of ``experiments`` leads with (none when it re-draws the shipped ones)."""
+    try:
+        source.resolve().relative_to(runs.REFERENCE_DIR.resolve())
+        return []
+    except ValueError:
+        pass
+    return list(dict.fromkeys(n for e in experiments for n in LEAD.get(e, ())))
+
+
+def lead_markdown(leads: list[Lead], out: Path, table) -> list[str]:
+    """The lead as markdown lines (``table(rows, columns)`` makes a table)."""
+    if not leads:
+        return []
+    lines = ["## At the paper's budget (shipped runs, 10 seeds x 1 M steps)", ""]
+    for lead in leads:
+        info = lead.exp.info
+        lines += [f"### {lead.exp.name}: {info.get('title', '')}", ""]
+        if lead.sentence:
+            lines += [f"**{lead.sentence}**", ""]
+        lines += [f"![{lead.exp.name} at the paper's budget]({lead.figure.relative_to(out).as_posix()})", ""]
+        lines += table(lead.rows, FINAL_COLUMNS) + ["", f"Source: `{source_name(lead.exp.path)}`.", ""]
+    return lines
+
+
+def lead_html(leads: list[Lead], out: Path, table) -> str:
+    """The lead as HTML (``table(rows, columns)`` makes a table)."""
+    if not leads:
+        return ""
+    parts = ["<section class='lead'><h2>At the paper's budget (shipped runs, 10 seeds × 1 M steps)</h2>"]
+    for lead in leads:
+        info = lead.exp.info
+        parts.append(f"<h3>{html.escape(lead.exp.name)}: {html.escape(info.get('title', ''))}</h3>")
+        if lead.sentence:
+            parts.append(f"<p class='claim'><b>{html.escape(lead.sentence)}</b></p>")
+        parts.append(f"<p><img src='{html.escape(lead.figure.relative_to(out).as_posix())}' "
+                     f"alt='{html.escape(lead.exp.name)} at the paper budget'></p>")
+        parts.append(table(lead.rows, FINAL_COLUMNS))
+        parts.append(f"<p>Source: <code>{html.escape(source_name(lead.exp.path))}</code></p>")
+    return "".join(parts) + "</section>"
+
+
+def run_summary(path: Path) -> list[str]:
+    """Lines that sum up an experiment directory: each condition's last evaluation and, for the headline
+    experiments, the claim at the paper's budget from the shipped runs.
+    """
+    from train.experiments.report.paper import load_paper
+
+    exp = load_experiment(path)
+    lines = [f"{exp.name}, this run:"]
+    for run in exp.runs:
+        ours, learned = summarize(run.values[-1], run.metric)
+        lines.append(f"  {run.label}: {ours} at {int(run.steps[-1]):,} steps, {learned} seeds learned")
+    paper_all = load_paper()
+    for name in lead_names([exp.name], path):
+        shipped = runs.REFERENCE_DIR / name
+        if (shipped / EXPERIMENT_FILE).exists():
+            sentence = contrast_sentence(load_experiment(shipped), paper_all.get(name, {}))
+            if sentence:
+                lines.append(f"{name} at the paper's budget (shipped, 10 seeds): {sentence}")
+    return lines

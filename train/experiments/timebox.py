@@ -1,0 +1,136 @@
+"""Size an experiment's runs to a time budget, from this machine's speed measured in the first seconds.
+
+`measure_speed` trains one job's configuration for a few epochs in this process (a fully random epoch and a
+mostly greedy one, which costs a forward pass per step, and one evaluation); `fit_steps` turns that into the
+steps per seed every job can take so that all of them, run ``workers`` at a time, end within the budget.
+The estimate is conservative: it counts each job's start-up, every evaluation and a margin for checkpoints.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from typing import Any
+
+from train.config import TrainConfig
+
+MARGIN = 1.1
+"""Factor on the predicted training time (checkpoints, a busier machine later on)."""
+
+MIN_EVALUATIONS = 2
+"""A sized run takes at least this many evaluation intervals (a curve needs points)."""
+
+
+@dataclass(frozen=True)
+class Speed:
+    """What one job costs on this machine, measured."""
+
+    startup_s: float
+    """Seconds from an empty process to the first trained epoch (imports, environment compilation)."""
+    random_epoch_s: float
+    """Seconds per epoch while every action is random (exploration epsilon 1)."""
+    greedy_epoch_s: float
+    """Seconds per epoch at the final exploration epsilon (a forward pass per step)."""
+    evaluation_s: float
+    """Seconds per evaluation."""
+
+    def describe(self, cfg: TrainConfig) -> str:
+        """One line: steps/s per seed early and late in training, and the evaluation's cost."""
+        k, n = cfg.run.seeds, cfg.dqn.epoch_steps
+        return (f"{n / self.random_epoch_s:.0f} steps/s per seed exploring, {n / self.greedy_epoch_s:.0f} acting "
+                f"greedily ({k} seeds in one process), {self.evaluation_s:.1f} s per evaluation")
+
+    def run_seconds(self, cfg: TrainConfig) -> float:
+        """Predicted seconds of one job of ``cfg`` (start-up, every epoch at its epsilon, every evaluation)."""
+        dqn, k = cfg.dqn, cfg.run.seeds
+        greedy_weight = 1.0 - dqn.eps_end ** k  # an epoch calls the network unless every seed explores
+        total = self.startup_s
+        for epoch in range(cfg.num_epochs):
+            step = dqn.warmup_steps + epoch * dqn.epoch_steps
+            share = (1.0 - dqn.epsilon(step) ** k) / greedy_weight if greedy_weight > 0 else 1.0
+            total += self.random_epoch_s + (self.greedy_epoch_s - self.random_epoch_s) * share
+        evaluations = cfg.num_epochs // cfg.eval_epochs + 1
+        return total * MARGIN + evaluations * self.evaluation_s
+
+
+def _timed_epochs(cfg: TrainConfig, epochs: int, evaluate: bool = False) -> tuple[float, float, float]:
+    """(seconds to the end of the first epoch, seconds per later epoch, seconds of one evaluation)."""
+    from train.trainer import Trainer
+
+    began = time.perf_counter()
+    trainer = Trainer(cfg)
+    try:
+        trainer.train_epoch()
+        first = time.perf_counter()
+        for _ in range(epochs):
+            trainer.train_epoch()
+        later = time.perf_counter()
+        if evaluate:
+            trainer.evaluate()
+        done = time.perf_counter()
+    finally:
+        trainer.close()
+    return first - began, (later - first) / epochs, done - later
+
+
+def measure_speed(config: dict[str, Any], epochs: int = 2) -> Speed:
+    """Train the job configuration ``config`` (`TrainConfig.to_dict`) briefly here and time it."""
+    cfg = TrainConfig.from_dict(config).replace(progress=False, steps=10_000)
+    start = time.perf_counter()
+    first, random_epoch, _ = _timed_epochs(cfg.replace(eps_start=1.0, eps_end=1.0), epochs)
+    startup = time.perf_counter() - start - random_epoch * epochs  # imports and compilation included
+    _, greedy_epoch, evaluation = _timed_epochs(cfg.replace(eps_start=cfg.dqn.eps_end), epochs, evaluate=True)
+    return Speed(max(startup, first), random_epoch, max(greedy_epoch, random_epoch), evaluation)
+
+
+def fit_steps(speed: Speed, config: dict[str, Any], jobs: int, workers: int, seconds: float) -> int:
+    """The most steps per seed (a multiple of the evaluation interval, at most the configuration's own) that
+    ``jobs`` runs of ``config``, ``workers`` at a time, finish in ``seconds``; at least `MIN_EVALUATIONS`
+    intervals.
+    """
+    cfg = TrainConfig.from_dict(config)
+    waves = math.ceil(jobs / max(1, min(workers, jobs)))
+    every = cfg.eval.eval_every
+    low, high = MIN_EVALUATIONS, max(MIN_EVALUATIONS, cfg.run.steps // every)
+    while low < high:  # the largest multiple whose predicted time fits
+        mid = (low + high + 1) // 2
+        if waves * speed.run_seconds(cfg.replace(steps=mid * every)) <= seconds:
+            low = mid
+        else:
+            high = mid - 1
+    return low * every
+
+
+def sized(config: dict[str, Any], steps: int) -> dict[str, Any]:
+    """``config`` with ``steps`` per seed (and its checkpoint interval scaled as the catalog does)."""
+    cfg = TrainConfig.from_dict(config)
+    every = max(cfg.eval.eval_every, min(50_000, math.ceil(steps / 10)))
+    return cfg.replace(steps=steps, checkpoint_every=every).to_dict()
+
+
+def resize_jobs(jobs: list, steps: int) -> list:
+    """The jobs with ``steps`` per seed."""
+    return [replace(job, config=sized(job.config, steps)) for job in jobs]
+
+
+REPORT_RESERVE_S = 75.0
+"""Seconds kept at the end of a time budget for the report (figures, videos)."""
+
+
+def timebox(jobs: list, seconds_left: float, workers: int, say) -> list:
+    """Measure this machine on the first job and size every job to end ``seconds_left`` from now, less the
+    report's reserve; ``say`` prints a line. Jobs already longer than that keep their own steps when done.
+    """
+    if not jobs or any(j.is_measurement for j in jobs):
+        return jobs
+    began = time.perf_counter()
+    say("measuring this machine's training speed (a few seconds) ...")
+    speed = measure_speed(jobs[0].config)  # in one process: in the one measured run it predicted within 3 %
+    cfg = TrainConfig.from_dict(jobs[0].config)
+    left = seconds_left - (time.perf_counter() - began) - REPORT_RESERVE_S
+    steps = fit_steps(speed, jobs[0].config, len(jobs), workers, left)
+    predicted = math.ceil(len(jobs) / max(1, min(workers, len(jobs)))) * speed.run_seconds(cfg.replace(steps=steps))
+    say(f"speed: {speed.describe(cfg)}; {len(jobs)} runs, {min(workers, len(jobs))} at a time, in {left / 60:.1f} "
+        f"min: {steps:,} steps per seed (predicted {predicted / 60:.1f} min; the budget's own: {cfg.run.steps:,})")
+    return resize_jobs(jobs, steps)
