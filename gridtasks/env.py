@@ -22,6 +22,9 @@ from ecology import Ecology, VisitGrid, check_action, check_render_mode, make_te
 from gridtasks import engine
 from gridtasks.codes import NAMES, Code
 
+MAX_GRID_SIZE = 256
+"""Largest grid side a task accepts (the paper's grids are 8 to 10 cells; a world costs 5 bytes per cell)."""
+
 
 def world_key(np_random: np.random.Generator) -> np.uint64:
     """Seed of a world's own random stream, drawn from the environment's seeded generator."""
@@ -97,6 +100,8 @@ class GridTaskEnv(gym.Env):
                  **params):
         self.ecology = Ecology(dynamism=dynamism, shaping=shaping, reset_free=reset_free, reward=reward)
         self.config = self._make_config(params)
+        if self.config.grid_size > MAX_GRID_SIZE:
+            raise ValueError(f"grid_size must be at most {MAX_GRID_SIZE}, got {self.config.grid_size}")
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         self.rules = self._build_rules()
         c = len(self.channels)
@@ -231,6 +236,8 @@ class GridTaskEnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
             return None
+        if not self._seeded:
+            raise RuntimeError("call reset() before render(): no world has been laid out yet")
         from gridtasks.render import render_world
 
         return render_world(self._state[0], self.rules[0], self.channels)
@@ -330,6 +337,8 @@ class GridTaskVectorEnv(VectorEnv):
 
         if self.render_mode is None:
             return None
+        if not self._seeded:
+            raise RuntimeError("call reset() before render(): no world has been laid out yet")
         return tuple(render_world(w, self.rules[0], self.template.channels) for w in self._state)
 
 

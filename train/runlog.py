@@ -14,6 +14,7 @@ import numpy as np
 
 from train.config import TrainConfig
 from train.rundir import RunDir
+from train.safeio import real_dir
 
 if TYPE_CHECKING:
     from train.trainer import Trainer
@@ -75,7 +76,7 @@ class RunLogger:
                 raise ImportError(f"--tensorboard needs the tensorboard package ({err}); install it with "
                                   f"pip install 'ecorl[tensorboard]', or drop --tensorboard") from err
             purge = None if resumed_at is None else resumed_at + 1
-            self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"), purge_step=purge)
+            self.writer = SummaryWriter(log_dir=str(real_dir(run_dir.path / "tensorboard")), purge_step=purge)
 
     def log(self, trainer: Trainer, rows: list[dict[str, Any]]) -> None:
         """Persist the latest evaluation."""

@@ -12,7 +12,6 @@ counts toward the step budget like any other.
 from __future__ import annotations
 
 import math
-import os
 import time
 from pathlib import Path
 from typing import Any
@@ -26,8 +25,10 @@ from train.agent.replay import Replay
 from train.agent.rnd import RND
 from train.config import TrainConfig
 from train.evaluate import Evaluator, evaluation_kwargs
+from train.memory import check_memory
 from train.rundir import RunDir, RunDirError
 from train.runlog import RunLogger, postfix, progress_bar, stop_on_signal
+from train.statecheck import check_state
 from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state
 
 STREAMS = ("init", "explore", "sample", "rnd")
@@ -64,8 +65,7 @@ class Trainer:
         self.rngs = {name: [s[name] for s in streams] for name in STREAMS}
         net = QNetwork(self.info.view_dim, self.info.obs_dim - self.info.view_dim, self.info.num_actions,
                        cfg.dqn.view_layers, cfg.dqn.inventory_layers, cfg.dqn.head_layers)
-        check_replay_memory(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
-                            cfg.dqn.float_obs_dtype)
+        check_memory(cfg, self.info.obs_dim, math.prod(self.info.visit_shape), net.num_params, self.task.binary_obs)
         self.agent = DoubleDQN(net, cfg.dqn, self.rngs["init"])
         self.rnd = RND(self.info.obs_dim, cfg.rnd, self.rngs["rnd"]) if cfg.rnd.rnd else None
         self.replay = Replay(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
@@ -280,6 +280,7 @@ class Trainer:
             raise RunDirError(f"checkpoint layout version {state.get('version')} is not {CHECKPOINT_VERSION}; "
                               f"re-run the training with this ecorl in a new --out directory")
         try:
+            check_state(state, self)  # every value, before any reaches torch, a generator or the engine
             self._load_arrays(state)
         except (KeyError, TypeError, ValueError, RuntimeError) as err:
             raise RunDirError(f"the checkpoint does not fit this run ({type(err).__name__}: {err}); start a "
@@ -334,21 +335,3 @@ def _check_shapes(saved: Any, live: Any, where: str) -> None:
         shape = tuple(saved.shape) if isinstance(saved, torch.Tensor) else type(saved).__name__
         raise ValueError(f"{where} has shape {shape}, this run needs {tuple(live.shape)}")
 
-
-def _memory_bytes() -> int | None:
-    """Physical memory of this machine in bytes (None where unknown)."""
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
-def check_replay_memory(num_agents: int, capacity: int, obs_dim: int, binary: bool, float_dtype: str) -> int:
-    """Refuse a replay buffer larger than this machine's memory before allocating it; return its bytes."""
-    need = Replay.bytes_needed(num_agents, capacity, obs_dim, binary, float_dtype)
-    have = _memory_bytes()
-    if have is not None and need > have:
-        raise ValueError(f"the replay buffers need {need / 2**30:.1f} GiB ({num_agents} seeds x {capacity} slots x "
-                         f"{need // (num_agents * capacity)} bytes), more than this machine's "
-                         f"{have / 2**30:.1f} GiB of memory; use fewer --seeds or a smaller --buffer-size")
-    return need

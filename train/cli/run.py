@@ -36,6 +36,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="local processes running at once (default: the number of CPU cores)")
     parser.add_argument("--seeds", type=positive, default=None, help="override the budget's seeds per condition")
     parser.add_argument("--steps", type=positive, default=None, help="override the budget's steps per seed")
+    parser.add_argument("--restart", nargs="+", metavar="C", default=(),
+                        help="train these conditions again from scratch, deleting their results and checkpoint "
+                             "(e.g. one that finished but lost its checkpoint)")
     parser.add_argument("--dry-run", action="store_true", help="print the runs (and their state), run nothing")
     parser.add_argument("--report", action="store_true", help="write the report of OUT/EXPERIMENT afterwards")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
@@ -67,7 +70,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         parser.error("name an EXPERIMENT (or pass --list)")
     try:
         exp = get_experiment(args.experiment)
-        jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition)
+        jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition, args.restart)
     except ValueError as err:
         parser.error(str(err))
     if args.out.exists() and not args.out.is_dir():
@@ -88,6 +91,10 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         return 130
     counts = summarize(results)
     print("runs: " + ", ".join(f"{n} {status}" for status, n in sorted(counts.items())), file=sys.stderr)
+    if counts.get("kept"):
+        print("some conditions hold results without a checkpoint and were kept as they are (see KEPT above); "
+              "re-run with --restart CONDITION to train them again from scratch", file=sys.stderr)
+        return 1
     if counts.get("failed") or counts.get("interrupted"):
         print("some runs did not finish; re-run the same command to retry/resume them", file=sys.stderr)
         return 1

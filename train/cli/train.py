@@ -84,6 +84,7 @@ def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
         raise ValueError(f"--out {out} is a file, not a directory; choose a directory path")
     if args.resume:
         cfg = resume_config(out, args.task, {**given_settings(args), "task": args.task})
+    cfg.check_trains()
     return cfg, out
 
 

@@ -18,14 +18,22 @@ from typing import Any
 from train.config import TrainConfig
 from train.experiments import table1
 from train.fileio import atomic_text, is_temporary
+from train.safeio import load_json
 
 DONE_FILE = "done.json"
 """Marker of a finished run (atomically written, with its step budget)."""
 
 
-TRAINER_FILES = ("config.json", "metrics.csv", "visits.npy", "visits")
-"""What a run that never reached its first checkpoint may have left (besides its lock and interrupted
-temporaries, `train.fileio.is_temporary`); cleared before it starts again."""
+UNSTARTED_FILES = ("config.json",)
+"""What a run stopped before its first checkpoint leaves (besides its lock and interrupted temporaries,
+`train.fileio.is_temporary`); cleared before it starts again. Anything else is a result, never deleted
+unless the job is restarted."""
+RESULT_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "tensorboard", DONE_FILE)
+"""What ``--restart`` clears (with the checkpoint) before a condition starts again."""
+
+
+class FinishedWithoutCheckpoint(RuntimeError):
+    """A condition holds results but no checkpoint to extend them from (the message says what to do)."""
 
 
 @dataclass(frozen=True)
@@ -40,6 +48,8 @@ class Job:
     """`TrainConfig.to_dict()`, or for a measurement {'measure', 'task', 'seeds', 'steps'}."""
     cost: float
     """Relative cost (seed-steps), to start the longest jobs first."""
+    restart: bool = False
+    """Clear the condition's results and checkpoint and train it from scratch (``ecorl run --restart``)."""
 
     @property
     def name(self) -> str:
@@ -58,7 +68,8 @@ class JobResult:
 
     job: str
     status: str
-    """'done' (ran to its budget now), 'skipped' (already done), 'interrupted' or 'failed'."""
+    """'done' (ran to its budget now), 'skipped' (already done), 'interrupted', 'failed' or 'kept' (results
+    without a checkpoint, left as they are: `FinishedWithoutCheckpoint`)."""
     seconds: float = 0.0
     error: str = ""
 
@@ -66,12 +77,15 @@ class JobResult:
 def read_done(run_dir: str | Path) -> dict[str, Any] | None:
     """The done marker of a run directory, or None."""
     path = Path(run_dir) / DONE_FILE
-    return json.loads(path.read_text()) if path.exists() else None
+    if not path.exists() and not path.is_symlink():
+        return None
+    done = load_json(path)
+    return done if isinstance(done, dict) else {}
 
 
 def job_is_done(job: Job) -> bool:
     """True when the job's directory holds a done marker that covers the job's budget and settings."""
-    done = read_done(job.run_dir)
+    done = None if job.restart else read_done(job.run_dir)
     if done is None:
         return False
     if job.is_measurement:
@@ -83,7 +97,7 @@ def job_is_done(job: Job) -> bool:
 
     saved = Path(job.run_dir) / "config.json"
     if saved.exists():
-        check_same_run(TrainConfig.from_dict(json.loads(saved.read_text())), cfg, saved)
+        check_same_run(TrainConfig.from_dict(load_json(saved)), cfg, saved)
     run = RunDir(job.run_dir)
     if not run.metrics_path.exists() and run.has_checkpoint():  # deleted by hand: rebuild it from the checkpoint
         run.lock()
@@ -94,21 +108,32 @@ def job_is_done(job: Job) -> bool:
     return True
 
 
-def _clear_unstarted(run_dir: Path) -> None:
-    """Remove what a run killed before its first checkpoint left behind (refuse to touch anything else)."""
+def _clear_unstarted(job: Job) -> None:
+    """Remove what a run stopped before its first checkpoint left (its config.json and temporaries); with
+    ``job.restart`` also its results. Results without a checkpoint are otherwise kept and reported
+    (`FinishedWithoutCheckpoint`); files ecorl did not write are never touched.
+    """
+    from train.checkpoint import CHECKPOINT_NAME
     from train.rundir import LOCK_NAME
 
+    run_dir = Path(job.run_dir)
     if not run_dir.exists():
         return
-    keep = {*TRAINER_FILES, DONE_FILE}
-    unknown = [p.name for p in run_dir.iterdir()
-               if p.name not in keep and p.name != LOCK_NAME and not is_temporary(p.name)]
+    clear = {*RESULT_FILES, CHECKPOINT_NAME} if job.restart else set(UNSTARTED_FILES)
+    names = {p.name for p in run_dir.iterdir()} - {LOCK_NAME}
+    results = sorted(n for n in names - clear if n in RESULT_FILES)
+    if results:
+        raise FinishedWithoutCheckpoint(
+            f"{job.name} holds results ({', '.join(results)}) but no {CHECKPOINT_NAME} to continue them from; "
+            f"they are kept as they are. To train it again from scratch (deleting them), re-run with "
+            f"--restart {job.condition}")
+    unknown = sorted(n for n in names - clear if not is_temporary(n))
     if unknown:
-        raise RuntimeError(f"{run_dir} holds no checkpoint but other files ({', '.join(sorted(unknown))}); "
+        raise RuntimeError(f"{run_dir} holds no checkpoint but other files ({', '.join(unknown)}); "
                            f"move them away or choose another --out")
     for p in run_dir.iterdir():
-        if p.name != LOCK_NAME:
-            shutil.rmtree(p) if p.is_dir() else p.unlink()
+        if p.name in clear or is_temporary(p.name):
+            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
 
 
 def execute(job: Job) -> JobResult:
@@ -122,6 +147,8 @@ def execute(job: Job) -> JobResult:
             return JobResult(job.name, "skipped")
         finished = _run_measurement(job) if job.is_measurement else _run_training(job)
         return JobResult(job.name, "done" if finished else "interrupted", time.perf_counter() - began)
+    except FinishedWithoutCheckpoint as err:
+        return JobResult(job.name, "kept", time.perf_counter() - began, str(err))
     except Exception as err:  # reported to the caller, which carries on with the other jobs
         from train.rundir import RunDirError
 
@@ -139,9 +166,9 @@ def _run_training(job: Job) -> bool:
     run = RunDir(run_dir)
     run.lock()  # one writer per run directory, held until the trainer closes: a concurrent sweep is refused
     try:
-        resume = run.has_checkpoint()
+        resume = run.has_checkpoint() and not job.restart
         if not resume:
-            _clear_unstarted(run_dir)
+            _clear_unstarted(job)
     except BaseException:
         run.unlock()
         raise
