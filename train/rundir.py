@@ -143,6 +143,8 @@ class RunDir:
         """The verified checkpoint (only the arrays in ``keys`` when given, at most ``limit`` bytes of them);
         `RunDirError` if unusable.
         """
+        if not self.has_checkpoint() and self.never_started():
+            raise RunDirError(self._no_checkpoint_message())
         if not self.has_checkpoint():
             raise RunDirError(f"{self.path} holds no {CHECKPOINT_NAME}; it is not a run directory of ecorl "
                               f"(or the run never reached its first checkpoint)")

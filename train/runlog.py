@@ -44,18 +44,45 @@ def progress_bar(cfg: TrainConfig, initial: int):
         bar.close()
 
 
+class Interrupted(KeyboardInterrupt):
+    """A signal stopped the run where it could not checkpoint: inside an evaluation, or a second signal.
+
+    The last checkpoint stands; a resumed run continues from it exactly.
+    """
+
+
+_STOPS: list[threading.Event] = []
+"""The events of the `stop_on_signal` blocks this process is inside."""
+
+
+def stop_requested() -> bool:
+    """True once SIGINT/SIGTERM arrived inside a `stop_on_signal` block (polled by long loops)."""
+    return any(stop.is_set() for stop in _STOPS)
+
+
 @contextmanager
 def stop_on_signal():
-    """An event set by SIGINT/SIGTERM while inside the block (main thread only; elsewhere never set)."""
+    """An event set by SIGINT/SIGTERM while inside the block (main thread only; elsewhere never set).
+
+    The first signal sets it (the run stops at the end of its epoch, with a checkpoint; an evaluation polls
+    `stop_requested` and stops at once, raising `Interrupted`); a second signal raises `Interrupted`.
+    """
     stop = threading.Event()
     if threading.current_thread() is not threading.main_thread():
         yield stop
         return
-    handler = lambda signum, frame: stop.set()  # noqa: E731
+
+    def handler(signum, frame):
+        if stop.is_set():
+            raise Interrupted(f"a second {signal.Signals(signum).name}")
+        stop.set()
+
     previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    _STOPS.append(stop)
     try:
         yield stop
     finally:
+        _STOPS.remove(stop)
         for sig, old in previous.items():
             signal.signal(sig, old)
 

@@ -42,7 +42,7 @@ def _kind(mode: int) -> str:
                        (stat.S_ISBLK, "a device"), (stat.S_ISSOCK, "a socket"), (stat.S_ISLNK, "a symbolic link")):
         if test(mode):
             return name
-    return "not a regular file"
+    return "a file" if stat.S_ISREG(mode) else "not a regular file"
 
 
 def open_regular(path: str | Path) -> BinaryIO:

@@ -60,12 +60,12 @@ class Trainer:
         # Adam's second moments of inputs that are never active decay through the denormal range, where
         # CPU arithmetic is ~100x slower; flushing only changes values below ~1e-38 (to zero).
         torch.set_flush_denormal(True)
-        self.seeds = cfg.run.seed_list
-        streams = [seed_streams(s) for s in self.seeds]
-        self.rngs = {name: [s[name] for s in streams] for name in STREAMS}
         net = QNetwork(self.info.view_dim, self.info.obs_dim - self.info.view_dim, self.info.num_actions,
                        cfg.dqn.view_layers, cfg.dqn.inventory_layers, cfg.dqn.head_layers)
         check_memory(cfg, self.info.obs_dim, math.prod(self.info.visit_shape), net.num_params, self.task.binary_obs)
+        self.seeds = cfg.run.seed_list
+        streams = [seed_streams(s) for s in self.seeds]
+        self.rngs = {name: [s[name] for s in streams] for name in STREAMS}
         self.agent = DoubleDQN(net, cfg.dqn, self.rngs["init"])
         self.rnd = RND(self.info.obs_dim, cfg.rnd, self.rngs["rnd"]) if cfg.rnd.rnd else None
         self.replay = Replay(self.num_agents, cfg.dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,

@@ -5,6 +5,7 @@ the test run)::
 
     python fuzz_checkpoint.py RUN_DIR WORK_DIR SEED COUNT STEPS [--all]
     python fuzz_checkpoint.py resume STEPS RUN_DIR...
+    python fuzz_checkpoint.py cli CASES.json      (each case: [label, ecorl arguments])
 
 For each mutation: copy RUN_DIR, change one value of its checkpoint (a world field, a replay pointer, a
 random-generator state, a weight, a counter, ...), rewrite it with `train.checkpoint.write_checkpoint` (which
@@ -19,6 +20,7 @@ import io
 import json
 import shutil
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -158,7 +160,12 @@ def run_case(source: Path, work: Path, path: tuple, kind: str, rng: np.random.Ge
 
 
 def main(argv: list[str]) -> int:
-    """Run the cases (or, given ``resume STEPS DIR...``, resume each DIR); one JSON line each."""
+    """Run the mutation cases, or resume each DIR, or run each CLI case; one JSON line each."""
+    if argv[0] == "cli":  # a JSON file of [label, argv] pairs
+        for label, args in json.loads(Path(argv[1]).read_text()):
+            began = time.monotonic()
+            print(json.dumps({**run_cli(label, args), "seconds": round(time.monotonic() - began, 2)}), flush=True)
+        return 0
     if argv[0] == "resume":
         for run_dir in argv[2:]:
             print(json.dumps(resume(Path(run_dir), int(argv[1]), run_dir)), flush=True)

@@ -78,7 +78,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     if args.dry_run:
         print_plan(jobs)
         return 0
-    write_experiment_file(exp, args.budget, jobs, args.out)
+    with user_errors(ValueError, OSError):
+        write_experiment_file(exp, args.budget, jobs, args.out)
     where = args.out / exp.name
     print(f"ecorl run {exp.name} ({exp.paper}): {len(jobs)} runs, budget {args.budget}, executor {args.executor}, "
           f"results in {where}", file=sys.stderr)

@@ -91,6 +91,7 @@ def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Build the config and the trainer, then train; print a one-line summary per evaluation at the end."""
     from train.rundir import RunDirError
+    from train.runlog import Interrupted
     from train.trainer import Trainer
 
     with user_errors(RunDirError, ValueError, TypeError, KeyError, OSError):
@@ -102,6 +103,10 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
           f"torch threads {run.threads}, run directory {out}", file=sys.stderr)
     try:
         rows = trainer.run()
+    except Interrupted as why:
+        print(f"stopped by {why} at step {trainer.step}; the checkpoint of step {trainer.last_checkpoint} stands; "
+              f"continue with: ecorl train {cfg.env.task} --resume --out {out}", file=sys.stderr)
+        return 130
     finally:
         trainer.close()
     if trainer.epoch < trainer.cfg.num_epochs:

@@ -18,6 +18,7 @@ from typing import Any
 from train.config import TrainConfig
 from train.experiments import table1
 from train.fileio import atomic_text, is_temporary
+from train.runlog import Interrupted
 from train.safeio import load_json
 
 DONE_FILE = "done.json"
@@ -147,6 +148,8 @@ def execute(job: Job) -> JobResult:
             return JobResult(job.name, "skipped")
         finished = _run_measurement(job) if job.is_measurement else _run_training(job)
         return JobResult(job.name, "done" if finished else "interrupted", time.perf_counter() - began)
+    except Interrupted:  # inside an evaluation, or a second signal: the last checkpoint stands
+        return JobResult(job.name, "interrupted", time.perf_counter() - began)
     except FinishedWithoutCheckpoint as err:
         return JobResult(job.name, "kept", time.perf_counter() - began, str(err))
     except Exception as err:  # reported to the caller, which carries on with the other jobs
