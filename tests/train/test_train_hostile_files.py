@@ -124,8 +124,8 @@ def table(finished: Path, root: Path) -> list[tuple[str, list[str], str]]:
         ("video --seed -1", ["video", "salad", "--random", "--seed", "-1"], "expected an integer >= 0"),
         ("video --out under a file", ["video", "salad", "--random", "--steps", "2", "--out",
                                       str(a_file / "v.mp4")], "a-file"),
-        ("measure --out under a file", ["measure", "entropy", "--task", "salad", "--seeds", "1", "--steps", "2", "--out",
-                                        str(a_file / "m")], "a-file"),
+        ("measure --out under a file", ["measure", "entropy", "--task", "salad", "--seeds", "1", "--steps", "2",
+                                        "--out", str(a_file / "m")], "a-file"),
         ("run --out under a file", ["run", "rnd", "--budget", "smoke", "--task", "factory", "--out",
                                     str(a_file / "r")], "a-file"),
     ]
