@@ -29,6 +29,7 @@ from train.config import TrainConfig
 from train.fileio import FileLock, LockedError, atomic_file, atomic_write, is_temporary
 from train.memory import checkpoint_limit
 from train.safeio import UnsafeFileError, real_dir
+from train.statecheck import check_counter
 
 __all__ = ["METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write", "check_same_run"]
 
@@ -157,7 +158,7 @@ class RunDir:
         """The checkpoint's configuration and the step the run stands at (reads no arrays)."""
         state = self.read_checkpoint(keys=[])
         try:
-            return TrainConfig.from_dict(state["config"]), int(state["step"])
+            return TrainConfig.from_dict(state["config"]), check_counter(state["step"], "step")
         except (KeyError, TypeError, ValueError) as err:
             raise RunDirError(f"{self.checkpoint_path} holds an unusable configuration ({err}); start a fresh "
                               f"run in another --out directory") from None

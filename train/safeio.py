@@ -94,18 +94,17 @@ def _depth(value: Any) -> int:
 
 
 def loads_json(text: str | bytes, what: str) -> Any:
-    """Parse JSON from ``what`` (a name for messages): numbers finite, nesting at most `MAX_JSON_DEPTH`."""
+    """Parse JSON from ``what`` (a name for messages): nesting at most `MAX_JSON_DEPTH`, no number literal that
+    overflows (``1e999``; Python writes NaN and infinities as ``NaN`` and ``Infinity``, which are kept).
+    """
     def finite(token: str) -> float:
         value = float(token)
         if not math.isfinite(value):
             raise ValueError(f"the number {token} is not finite")
         return value
 
-    def constant(token: str):
-        raise ValueError(f"{token} is not a finite number")
-
     try:
-        value = json.loads(text, parse_float=finite, parse_constant=constant)
+        value = json.loads(text, parse_float=finite)
     except RecursionError:
         raise UnsafeFileError(f"{what} nests deeper than {MAX_JSON_DEPTH} levels; it is not ecorl's JSON") from None
     except ValueError as err:  # JSONDecodeError, non-finite numbers, integers too long to convert

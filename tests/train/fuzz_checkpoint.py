@@ -141,7 +141,7 @@ def resume(run_dir: Path, steps: int, label: str) -> dict:
     try:
         task = read_checkpoint(run_dir / "checkpoint.npz", keys=[])["config"]["env"]["task"]
         task = task if isinstance(task, str) else "salad"
-    except (KeyError, TypeError):  # a mutated configuration: the trainer must refuse it
+    except Exception:  # a mutated manifest or configuration: the trainer must refuse it
         task = "salad"
     return run_cli(label, ["train", task, "--resume", "--out", str(run_dir), "--steps", str(steps), "--no-progress"])
 

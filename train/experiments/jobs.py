@@ -122,16 +122,16 @@ def _clear_unstarted(job: Job) -> None:
         return
     clear = {*RESULT_FILES, CHECKPOINT_NAME} if job.restart else set(UNSTARTED_FILES)
     names = {p.name for p in run_dir.iterdir()} - {LOCK_NAME}
+    unknown = sorted(n for n in names - clear if not is_temporary(n) and n not in RESULT_FILES)
+    if unknown:
+        raise RuntimeError(f"{run_dir} holds no checkpoint but other files ({', '.join(unknown)}); "
+                           f"move them away or choose another --out")
     results = sorted(n for n in names - clear if n in RESULT_FILES)
     if results:
         raise FinishedWithoutCheckpoint(
             f"{job.name} holds results ({', '.join(results)}) but no {CHECKPOINT_NAME} to continue them from; "
             f"they are kept as they are. To train it again from scratch (deleting them), re-run with "
             f"--restart {job.condition}")
-    unknown = sorted(n for n in names - clear if not is_temporary(n))
-    if unknown:
-        raise RuntimeError(f"{run_dir} holds no checkpoint but other files ({', '.join(unknown)}); "
-                           f"move them away or choose another --out")
     for p in run_dir.iterdir():
         if p.name in clear or is_temporary(p.name):
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
