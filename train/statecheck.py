@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from train.tasks import env_state
+
 MAX_COUNTER = 2**62
 """Largest step, epoch or count a checkpoint may hold."""
 MAX_ROWS = 10_000_000
@@ -48,12 +50,24 @@ def _finite(array: np.ndarray, what: str) -> None:
 
 
 def check_tree(saved: Any, live: Any, what: str) -> None:
-    """Same structure as ``live``: tensors/arrays of its dtype and shape with finite values, ints >= 0."""
-    if isinstance(live, dict):
+    """Same structure as ``live``: tensors/arrays of its dtype and shape with finite values, ints >= 0,
+    booleans, finite floats, equal strings, generator states their generator accepts.
+    """
+    if isinstance(live, dict) and "bit_generator" in live:
+        check_rng_state(saved, getattr(np.random, live["bit_generator"])(), what)
+    elif isinstance(live, dict):
         if not isinstance(saved, dict) or set(saved) != set(live):
             raise ValueError(f"{what} does not have this run's fields")
         for key, value in live.items():
             check_tree(saved[key], value, f"{what}/{key}")
+    elif isinstance(live, list):
+        if not isinstance(saved, list) or len(saved) != len(live):
+            raise ValueError(f"{what} does not hold {len(live)} entries")
+        for i, (a, b) in enumerate(zip(saved, live)):
+            check_tree(a, b, f"{what}/{i}")
+    elif isinstance(live, str):
+        if saved != live:
+            raise ValueError(f"{what} is {saved!r}, not {live!r}")
     elif isinstance(live, (torch.Tensor, np.ndarray)):
         _finite(_array(saved, live, what), what)
     elif isinstance(live, bool):
@@ -66,12 +80,13 @@ def check_tree(saved: Any, live: Any, what: str) -> None:
             raise ValueError(f"{what} is {saved!r}, not a finite number")
 
 
-def check_rng_state(saved: Any, live: np.random.Generator, what: str) -> None:
+def check_rng_state(saved: Any, live: np.random.Generator | np.random.BitGenerator, what: str) -> None:
     """A numpy generator state that ``live``'s bit generator accepts (tried on a scratch copy)."""
-    if not isinstance(saved, dict) or saved.get("bit_generator") != type(live.bit_generator).__name__:
-        raise ValueError(f"{what} is not a {type(live.bit_generator).__name__} state")
+    bits = live.bit_generator if isinstance(live, np.random.Generator) else live
+    if not isinstance(saved, dict) or saved.get("bit_generator") != type(bits).__name__:
+        raise ValueError(f"{what} is not a {type(bits).__name__} state")
     try:
-        type(live.bit_generator)().state = saved
+        type(bits)().state = saved
     except (TypeError, ValueError, KeyError, OverflowError) as err:
         raise ValueError(f"{what} is not a valid generator state ({err})") from None
 
@@ -121,22 +136,6 @@ def check_rows(rows: Any, columns: tuple[str, ...]) -> None:
             raise ValueError(f"a metric row is not a mapping of {', '.join(columns)} to numbers")
 
 
-def check_plain(value: Any, what: str) -> None:
-    """Plain data (e.g. a food collector's state): every number finite; arrays of numbers only."""
-    if isinstance(value, dict):
-        for key, item in value.items():
-            check_plain(item, f"{what}/{key}")
-    elif isinstance(value, list):
-        for i, item in enumerate(value):
-            check_plain(item, f"{what}/{i}")
-    elif isinstance(value, np.ndarray):
-        if value.dtype.kind not in "biuf":
-            raise ValueError(f"{what} is a {value.dtype} array, not numbers")
-        _finite(value, what)
-    elif isinstance(value, float) and not math.isfinite(value):
-        raise ValueError(f"{what} is {value!r}, not a finite number")
-
-
 def check_state(state: dict[str, Any], trainer: Any) -> None:
     """Raise ValueError unless ``state`` (a checkpoint's tree) is one ``trainer`` may load, value by value."""
     from train.rundir import METRIC_COLUMNS
@@ -174,9 +173,6 @@ def check_state(state: dict[str, Any], trainer: Any) -> None:
         _finite(obs, "obs")
         if trainer.task.binary_obs and not np.isin(obs, (0.0, 1.0)).all():
             raise ValueError("obs holds values other than 0 and 1, which this task never observes")
-    env = state.get("env")
-    if env is not None and not isinstance(env, dict):
-        raise ValueError("env is not an environment state")
-    if env is not None and env.get("kind") != "grid":
-        check_plain(env, "env")  # the grid worlds are checked value by value where they are restored
+    if state.get("env") is not None:  # the grid worlds are checked value by value where they are restored
+        check_tree(state["env"], env_state(trainer.env), "env")
     check_rows(state.get("rows"), METRIC_COLUMNS)

@@ -3,7 +3,7 @@
 Run as a script (in a subprocess, so that a crash of compiled code is seen as a failure, not as the end of
 the test run)::
 
-    python fuzz_checkpoint.py RUN_DIR WORK_DIR SEED COUNT STEPS [--all]
+    python fuzz_checkpoint.py RUN_DIR WORK_DIR SEED COUNT STEPS [--all] [--only TOP_LEVEL_KEY]
     python fuzz_checkpoint.py resume STEPS RUN_DIR...
     python fuzz_checkpoint.py cli CASES.json      (each case: [label, ecorl arguments])
 
@@ -107,9 +107,13 @@ def mutate(node: Any, kind: str, rng: np.random.Generator) -> Any:
     return node[:-1]
 
 
-def cases(state: dict[str, Any], rng: np.random.Generator, count: int | None) -> list[tuple[tuple, str]]:
-    """(path, kind) of ``count`` mutations drawn without replacement (all of them when count is None)."""
-    every = [(path, kind) for path in leaves(state) if path for kind in kinds_of(get(state, path))]
+def cases(state: dict[str, Any], rng: np.random.Generator, count: int | None, prefix: str | None = None
+          ) -> list[tuple[tuple, str]]:
+    """(path, kind) of ``count`` mutations drawn without replacement (all of them when count is None), only
+    under the top-level key ``prefix`` when given.
+    """
+    every = [(path, kind) for path in leaves(state) if path and prefix in (None, path[0])
+             for kind in kinds_of(get(state, path))]
     if count is None or count >= len(every):
         return every
     # every world field and the replay pointers first: the values the compiled code indexes with
@@ -175,7 +179,8 @@ def main(argv: list[str]) -> int:
 
     rng = np.random.default_rng(seed)
     state = read_checkpoint(source / "checkpoint.npz")
-    for i, (path, kind) in enumerate(cases(state, rng, None if "--all" in argv else count)):
+    prefix = argv[argv.index("--only") + 1] if "--only" in argv else None
+    for i, (path, kind) in enumerate(cases(state, rng, None if "--all" in argv else count, prefix)):
         print(json.dumps(run_case(source, work / f"case{i}", path, kind, rng, steps)), flush=True)
         shutil.rmtree(work / f"case{i}", ignore_errors=True)
     return 0

@@ -102,6 +102,16 @@ def test_mutating_any_field_gives_a_one_line_error_or_a_resume(source, tmp_path)
     assert any(r["rc"] == 2 for r in results) and any(r["rc"] == 0 for r in results)
 
 
+def test_mutating_a_food_collectors_saved_state_gives_a_one_line_error_or_a_resume(tmp_path):
+    """The food collector's environment state (pymunk bodies, spheres, counters, generators), sampled."""
+    run = tmp_path / "food"
+    assert main(["train", "foodcollector", "--steps", "400", *TINY, "--out", str(run)]) == 0
+    results = fuzz(run, tmp_path / "work", 0, 30, 600, "--only", "env")
+    assert len(results) == 30
+    assert_clean(results)
+    assert any(r["rc"] == 2 for r in results)
+
+
 @pytest.mark.slow
 def test_mutating_every_field_gives_a_one_line_error_or_a_resume(source, tmp_path):
     """Every mutation of every field of the checkpoint (a few minutes)."""
