@@ -292,3 +292,22 @@ def test_a_seeded_food_collector_reset_is_a_pure_function_of_the_seed():
         env = gym.make(foodcollector.ENV_ID)
         trajectory(env, 1, [push] * 400)
         assert np.array_equal(trajectory(env, 5, actions), fresh), push
+
+
+def _disk_full(*args, **kwargs):
+    import errno
+
+    raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_a_full_disk_is_one_line_under_train_and_run(tmp_path, monkeypatch, capsys):
+    from train.experiments.catalog import get_experiment
+    from train.experiments.jobs import execute
+    from train.experiments.sweep import plan
+
+    monkeypatch.setattr("train.fileio._replace", _disk_full)
+    assert main(["train", "salad", "--steps", "400", *TINY, "--out", str(tmp_path / "run")]) == 2
+    assert "No space left on device" in one_line(capsys)
+    job = plan(get_experiment("rnd"), "smoke", tmp_path / "sweep", ["factory"])[0]
+    result = execute(job)
+    assert result.status == "failed" and "No space left" in result.error and "\n" not in result.error

@@ -19,7 +19,7 @@ from train.config import TrainConfig
 from train.experiments import table1
 from train.fileio import atomic_text, is_temporary
 from train.runlog import Interrupted
-from train.safeio import load_json
+from train.safeio import UnsafeFileError, load_json
 
 DONE_FILE = "done.json"
 """Marker of a finished run (atomically written, with its step budget)."""
@@ -155,7 +155,8 @@ def execute(job: Job) -> JobResult:
     except Exception as err:  # reported to the caller, which carries on with the other jobs
         from train.rundir import RunDirError
 
-        why = " ".join(str(err).split()) if isinstance(err, RunDirError) else traceback.format_exc()
+        input_error = isinstance(err, (RunDirError, UnsafeFileError, OSError))  # a file or a full disk, not a bug
+        why = " ".join(str(err).split()) if input_error else traceback.format_exc()
         return JobResult(job.name, "failed", time.perf_counter() - began, why)
 
 

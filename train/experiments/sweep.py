@@ -175,8 +175,8 @@ def print_plan(jobs: Sequence[Job], file=None) -> None:
                     f"p={c.env.dynamism:g}, shaping={c.env.shaping}, "
                     f"{'reset-free' if c.env.reset_free else 'episodic'}, "
                     f"reward={c.env.reward}{', rnd' if c.rnd.rnd else ''}")
-        state = "done" if _safe_is_done(job) else ("resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists()
-                                                    else "new")
+        state = "restart" if job.restart else "done" if _safe_is_done(job) else (
+            "resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists() else "new")
         print(f"[{state:>6s}] {job.name}: {what}", file=file)
 
 
