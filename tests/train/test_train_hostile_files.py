@@ -126,6 +126,7 @@ def table(finished: Path, root: Path) -> list[tuple[str, list[str], str]]:
                                       str(a_file / "v.mp4")], "a-file"),
         ("measure --out under a file", ["measure", "entropy", "--task", "salad", "--seeds", "1", "--steps", "2",
                                         "--out", str(a_file / "m")], "a-file"),
+        ("demo --out under a file", ["demo", "--steps", "2", "--out", str(a_file / "d")], "a-file"),
         ("run --out under a file", ["run", "rnd", "--budget", "smoke", "--task", "factory", "--out",
                                     str(a_file / "r")], "a-file"),
     ]
@@ -136,6 +137,11 @@ def table(finished: Path, root: Path) -> list[tuple[str, list[str], str]]:
         run = runs[name]
         cases += [(f"evaluate: {name}", ["evaluate", str(run), "--rollouts", "1"], message),
                   (f"export: {name}", ["export", str(run), "--out", str(root / f"{name}.npz")], message)]
+    policy = root / "huge-policy.npz"
+    assert main(["export", str(finished), "--out", str(policy), "--agent", "0"]) == 0
+    rebuild(policy, {"params.npy": npy_header((1, 10**12))}, frozenset({"params.npy"}))
+    cases.append(("evaluate: policy file declaring (1, 10**12)", ["evaluate", str(policy), "--rollouts", "1"],
+                  "declares"))
     cases.append(("video: huge header", ["video", "salad", "--policy", str(runs["huge header"]), "--steps", "2",
                                          "--out", str(root / "v.mp4")], "declares"))
     cases.append(("train --resume: zip bomb", ["train", "salad", "--resume", "--out", str(runs["zip bomb"])],
