@@ -334,4 +334,3 @@ def _check_shapes(saved: Any, live: Any, where: str) -> None:
     elif isinstance(live, torch.Tensor) and (not isinstance(saved, torch.Tensor) or saved.shape != live.shape):
         shape = tuple(saved.shape) if isinstance(saved, torch.Tensor) else type(saved).__name__
         raise ValueError(f"{where} has shape {shape}, this run needs {tuple(live.shape)}")
-
