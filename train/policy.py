@@ -56,8 +56,8 @@ class Policy:
         self._net = QNetwork(info.view_dim, info.obs_dim - info.view_dim, info.num_actions, d.view_layers,
                              d.inventory_layers, d.head_layers)
         if self.params.shape != (1, self._net.num_params) or self.params.dtype != torch.float32:
-            raise ValueError(f"policy parameters are {self.params.dtype} {tuple(self.params.shape)}, but the network "
-                             f"of this configuration needs float32 (1, {self._net.num_params})")
+            raise ValueError(f"policy parameters have shape {tuple(self.params.shape)} and dtype {self.params.dtype}, "
+                             f"but the network of this configuration needs (1, {self._net.num_params}) float32")
         if not torch.isfinite(self.params).all():
             raise ValueError(f"the policy holds {int((~torch.isfinite(self.params)).sum())} NaN or infinite "
                              f"parameters; it cannot act (use a checkpoint of a healthy run)")

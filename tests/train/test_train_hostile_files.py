@@ -132,7 +132,7 @@ def table(finished: Path, root: Path) -> list[tuple[str, list[str], str]]:
     ]
     expected = {"zip bomb": "compressed", "huge header": "declares", "nested json": "nests deeper",
                 "step 1e999": "not finite", "grid_size 3000": "grid_size must be at most",
-                "nan weights": "NaN", "float64 weights": "float32"}
+                "nan weights": "NaN", "float64 weights": "dtype torch.float64"}
     for name, message in expected.items():
         run = runs[name]
         cases += [(f"evaluate: {name}", ["evaluate", str(run), "--rollouts", "1"], message),
