@@ -177,8 +177,9 @@ class FoodCollectorEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Place the agent and every sphere anew; a seed also restarts the lifetime counter."""
         super().reset(seed=seed)
-        if seed is not None:
-            self._lifetime_step = 0
+        if seed is not None:  # a new life: a fresh physics space too, so that a seeded reset is a pure
+            self._lifetime_step = 0  # function of the seed (pymunk warm-starts from its contact cache)
+            self.arena = Arena(self.params, self.spheres.green, moving=self.spheres.speed > 0)
         rng = self.np_random
         half = self.params.spawn_half_size
         x, y = rng.uniform(-half, half, size=2).tolist()

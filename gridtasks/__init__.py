@@ -8,6 +8,7 @@ from gridtasks.codes import Code
 from gridtasks.env import GridTaskEnv, GridTaskVectorEnv
 from gridtasks.factory import FactoryEnv
 from gridtasks.hunting import HuntingEnv
+from gridtasks.records import check_worlds
 from gridtasks.registration import ENV_IDS, TASKS, register_all
 from gridtasks.salad import SaladEnv, WalledSaladEnv
 from gridtasks.scavenging import ScavengingEnv
@@ -16,6 +17,7 @@ from gridtasks.validation import make_test_env, make_validation_envs, validation
 register_all()
 
 __all__ = [
+    "check_worlds",
     "ENV_IDS",
     "TASKS",
     "Code",

@@ -33,6 +33,9 @@ from gridtasks.batch import (  # noqa: F401 (check_* are re-exported for the tas
 )
 from gridtasks.codes import NAMES, Code
 
+MAX_GRID_SIZE = 256
+"""Largest grid side a task accepts (the paper's grids are 8 to 10 cells; a world costs 5 bytes per cell)."""
+
 
 @dataclass(frozen=True)
 class EpisodeRules:
@@ -85,6 +88,8 @@ class GridTaskEnv(gym.Env):
                  **params):
         self.ecology = Ecology(dynamism=dynamism, shaping=shaping, reset_free=reset_free, reward=reward)
         self.config = self._make_config(params)
+        if self.config.grid_size > MAX_GRID_SIZE:
+            raise ValueError(f"grid_size must be at most {MAX_GRID_SIZE}, got {self.config.grid_size}")
         self.render_mode = check_render_mode(render_mode, self.metadata["render_modes"])
         self.rules = self._build_rules()
         c = len(self.channels)
@@ -219,6 +224,8 @@ class GridTaskEnv(gym.Env):
         if self.render_mode is None:
             gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
             return None
+        if not self._seeded:
+            raise RuntimeError("call reset() before render(): no world has been laid out yet")
         from gridtasks.render import render_world
 
         return render_world(self._state[0], self.rules[0], self.channels)
@@ -343,4 +350,6 @@ class GridTaskVectorEnv(VectorEnv):
 
         if self.render_mode is None:
             return None
+        if not self._seeded:
+            raise RuntimeError("call reset() before render(): no world has been laid out yet")
         return tuple(render_world(w, self.rules[0], self.template.channels) for w in self._state)

@@ -163,3 +163,70 @@ def code_mask(*codes: int) -> int:
     for c in codes:
         mask |= 1 << int(c)
     return mask
+
+
+MAX_COUNT = 2**62
+"""Largest step or event count a restored world may hold (the engine adds to them without overflow checks)."""
+MAX_AGE = 2**30
+"""Largest object age a restored world may hold (ages are 32-bit)."""
+
+
+def _refuse(index: int, what: str) -> ValueError:
+    return ValueError(f"world {index} of the saved state is impossible for this task: {what}")
+
+
+def check_worlds(worlds: np.ndarray, rules: np.ndarray) -> None:
+    """Raise ValueError (one line) unless every record of ``worlds`` is a state this task's engine can reach.
+
+    The compiled kernels index arrays by these values without bounds checks, so a state read from a file
+    must pass here before it is stepped: positions inside the wall ring, cell and inventory codes the
+    task observes, the walls where the task's layout has them, counters and ages not negative, flags 0/1.
+    """
+    r = rules[0] if rules.ndim else rules
+    n = int(r["n"])
+    if worlds.dtype != world_dtype(n):
+        raise ValueError(f"the saved worlds are not {n}x{n} worlds of this task")
+    observed = np.asarray(r["channel"]) >= 0
+    cell_ok = observed.copy()
+    cell_ok[Code.PREDATOR] = False
+    carry_ok = cell_ok.copy()
+    carry_ok[[Code.EMPTY, Code.WALL]] = False
+    carry_ok[Code.EMPTY] = True  # 0 = empty hands
+    walls = np.asarray(r["layout"]) == Code.WALL
+    for i, w in enumerate(worlds):
+        _check_one(i, w, r, n, cell_ok, carry_ok, walls)
+
+
+def _inside(xy: np.ndarray, n: int) -> bool:
+    """True if (x, y) lies strictly inside the wall ring of an n×n grid."""
+    return bool(np.all((1 <= xy) & (xy <= n - 2)))
+
+
+def _check_one(i: int, w: np.void, r: np.void, n: int, cell_ok: np.ndarray, carry_ok: np.ndarray,
+               walls: np.ndarray) -> None:
+    """`check_worlds` for world ``i``."""
+    grid = w["grid"]
+    bad = grid[~cell_ok[np.minimum(grid, NC - 1)] | (grid >= NC)]
+    if bad.size:
+        raise _refuse(i, f"cell code {int(bad[0])} is not one of this task's objects")
+    if not np.array_equal(grid == Code.WALL, walls):
+        raise _refuse(i, "its walls differ from the task's layout")
+    if not _inside(w["agent"], n) or grid[w["agent"][1], w["agent"][0]] == Code.WALL:
+        raise _refuse(i, f"agent at {tuple(int(v) for v in w['agent'])} is not on a free cell of the {n}x{n} grid")
+    start = w["start"]
+    if not (np.all(start == -1) or np.all((0 <= start) & (start < n))):
+        raise _refuse(i, f"start cell {tuple(int(v) for v in start)} is off the grid")
+    inventory = int(w["inventory"])
+    if inventory >= NC or not carry_ok[inventory]:
+        raise _refuse(i, f"inventory code {inventory} is not an object of this task that can be carried")
+    for name in ("age", "carried_age", "episode_step", "lifetime_step", "pickups", "made", "completions",
+                 "pred_age"):
+        high = MAX_AGE if name in ("age", "carried_age") else MAX_COUNT
+        if np.any(w[name] < 0) or np.any(w[name] > high):
+            raise _refuse(i, f"{name} lies outside [0, {high}]")
+    for name in ("needs_reset", "replay_layout", "stage_done"):
+        if np.any(np.asarray(w[name]).view(np.uint8) > 1):
+            raise _refuse(i, f"{name} is not 0 or 1")
+    for k in range(int(r["num_predators"])):
+        if not _inside(w["pred"][k], n):
+            raise _refuse(i, f"predator {k} at {tuple(int(v) for v in w['pred'][k])} is off the grid")

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import zipfile
 from collections.abc import Iterable
 from pathlib import Path
@@ -26,6 +27,7 @@ import numpy as np
 import torch
 
 from train.fileio import atomic_file
+from train.safeio import UnsafeFileError, loads_json, open_regular, read_npy
 
 FORMAT = 2
 """Version of the checkpoint layout written and read here."""
@@ -149,11 +151,26 @@ def _corrupt(path: Path, why: str) -> CheckpointError:
                            f"start a fresh run in another --out directory")
 
 
+def _member_info(zf: zipfile.ZipFile, path: Path, key: str) -> zipfile.ZipInfo:
+    """The zip directory's entry of ``KEY.npy``: stored as ecorl stores it (never compressed)."""
+    try:
+        info = zf.getinfo(f"{key}.npy")
+    except KeyError:
+        raise _corrupt(path, f"no array {key!r}") from None
+    if info.compress_type != zipfile.ZIP_STORED:
+        raise _corrupt(path, f"member {key!r} is compressed; ecorl stores checkpoint arrays uncompressed")
+    return info
+
+
 def _read_member(zf: zipfile.ZipFile, path: Path, key: str) -> tuple[np.ndarray, str]:
-    """One array (never unpickled) and the SHA-256 of its member's bytes."""
-    with zf.open(f"{key}.npy") as member:
+    """One array (never unpickled) and the SHA-256 of its member's bytes; sizes checked before reading."""
+    info = _member_info(zf, path, key)
+    with zf.open(info) as member:
         hashing = _Hashing(member)
-        array = np.lib.format.read_array(hashing, allow_pickle=False)
+        try:
+            array = read_npy(hashing, info.file_size, f"member {key!r}")
+        except ValueError as err:
+            raise _corrupt(path, str(err)) from None
         if hashing.read(1):
             raise _corrupt(path, f"member {key!r} has trailing bytes")
     return array, hashing.hash.hexdigest()
@@ -161,16 +178,15 @@ def _read_member(zf: zipfile.ZipFile, path: Path, key: str) -> tuple[np.ndarray,
 
 def _read_manifest(zf: zipfile.ZipFile, path: Path) -> dict[str, Any]:
     """The manifest, its format checked."""
-    try:
-        info = zf.getinfo(f"{MANIFEST}.npy")
-    except KeyError:
-        raise _corrupt(path, "no manifest") from None
+    if f"{MANIFEST}.npy" not in zf.namelist():
+        raise _corrupt(path, "no manifest")
+    info = _member_info(zf, path, MANIFEST)
     if info.file_size > MAX_MANIFEST_BYTES:
         raise _corrupt(path, f"manifest of {info.file_size} bytes")
     raw, _ = _read_member(zf, path, MANIFEST)
     if raw.dtype != np.uint8 or raw.ndim != 1:
         raise _corrupt(path, "manifest is not UTF-8 bytes")
-    manifest = json.loads(raw.tobytes().decode())
+    manifest = loads_json(raw.tobytes().decode(), f"the manifest of {path}")
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
         found = manifest.get("format") if isinstance(manifest, dict) else None
         raise CheckpointError(f"{path} has checkpoint format {found!r}; this ecorl reads format {FORMAT}: re-run "
@@ -180,19 +196,37 @@ def _read_manifest(zf: zipfile.ZipFile, path: Path) -> dict[str, Any]:
     return manifest
 
 
-def read_checkpoint(path: str | Path, keys: Iterable[str] | None = None) -> dict[str, Any]:
+def default_limit() -> int:
+    """The most bytes of arrays a checkpoint may make ecorl allocate when no configuration bounds it: half
+    of this machine's memory.
+    """
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2
+    except (ValueError, OSError, AttributeError):
+        return 64 << 30
+
+
+def read_checkpoint(path: str | Path, keys: Iterable[str] | None = None, limit: int | None = None) -> dict[str, Any]:
     """Read and verify a checkpoint; ``keys`` limits the arrays loaded (the others come back as None).
 
+    ``limit`` bounds the bytes of the arrays read (default `default_limit`): the sizes the zip directory and
+    each array header declare are checked against it before anything is decompressed or allocated.
     Raises `CheckpointError` (one line: why, and what to do) for anything that is not an intact format-2
     checkpoint, including a pickled format-1 file, which is never opened.
     """
     path = Path(path)
     if path.name == LEGACY_NAME or (not path.exists() and (path.parent / LEGACY_NAME).exists()):
         raise CheckpointError(legacy_message(path.parent / LEGACY_NAME))
+    limit = default_limit() if limit is None else limit
     try:
-        with zipfile.ZipFile(path) as zf:
+        with open_regular(path) as file, zipfile.ZipFile(file) as zf:
             manifest = _read_manifest(zf, path)
             wanted = array_keys(manifest["state"]) if keys is None else list(keys)
+            declared = sum(_member_info(zf, path, key).file_size for key in wanted)
+            if declared > limit:
+                raise CheckpointError(f"{path} declares {declared} bytes of arrays, more than the {limit} a run "
+                                      f"of its settings can hold; it is not a checkpoint ecorl wrote for this run: "
+                                      f"start a fresh run in another --out directory")
             arrays: dict[str, np.ndarray | None] = {}
             for key in wanted:
                 if key not in manifest["sha256"]:
@@ -201,11 +235,13 @@ def read_checkpoint(path: str | Path, keys: Iterable[str] | None = None) -> dict
                 if digest != manifest["sha256"][key]:
                     raise _corrupt(path, f"checksum mismatch in {key!r}: truncated or altered")
                 arrays[key] = array
+            return unflatten(manifest["state"], arrays)
     except CheckpointError:
         raise
+    except UnsafeFileError as err:
+        raise CheckpointError(str(err)) from None
     except FileNotFoundError:
         raise
     except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, EOFError, KeyError, ValueError, UnicodeError,
-            json.JSONDecodeError) as err:
+            TypeError, json.JSONDecodeError) as err:
         raise _corrupt(path, f"{type(err).__name__}: {err}".replace("\n", " ")) from None
-    return unflatten(manifest["state"], arrays)

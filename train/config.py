@@ -40,10 +40,16 @@ def check_number(name: str, value: Any, low: float | None = None, high: float | 
         raise ValueError(f"{name} must be a finite number {span}, got {value!r}")
 
 
+MAX_INT = 2**53
+"""Largest integer setting (beyond it no count fits the engine's 64-bit counters with room to grow)."""
+
+
 def check_int(name: str, value: Any, low: int = 1) -> None:
-    """Raise ValueError unless ``value`` is an integer >= ``low``."""
+    """Raise ValueError unless ``value`` is an integer in [``low``, `MAX_INT`]."""
     if isinstance(value, bool) or not isinstance(value, int) or value < low:
         raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    if value > MAX_INT:
+        raise ValueError(f"{name} must be at most {MAX_INT}, got {value!r}")
 
 
 def check_layers(name: str, value: Any, allow_empty: bool = False) -> None:
@@ -280,6 +286,13 @@ class TrainConfig:
         if self.eval.eval_every % self.dqn.epoch_steps:
             raise ValueError(f"eval_every ({self.eval.eval_every}) must be a multiple of epoch_steps "
                              f"({self.dqn.epoch_steps})")
+
+    def check_trains(self) -> None:
+        """Raise ValueError if the run would train nothing (its warm-up takes every step)."""
+        if self.dqn.warmup_steps >= self.run.steps:
+            raise ValueError(f"warmup_steps ({self.dqn.warmup_steps}) must be below steps ({self.run.steps}), or "
+                             f"nothing is trained; give --steps above {self.dqn.warmup_steps} or a smaller "
+                             f"--warmup-steps")
 
     @property
     def num_epochs(self) -> int:

@@ -10,6 +10,7 @@ evaluating never touches the training streams and a resumed run evaluates identi
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -18,8 +19,12 @@ import numpy as np
 import torch
 
 from ecology import validation_seeds
+from train.runlog import Interrupted, stop_requested
 from train.tasks import make_vector_env
 
+STOP_GRACE_S = 1.0
+"""After SIGINT/SIGTERM an evaluation may run this long to finish (the run then checkpoints); a longer one is
+abandoned (`train.runlog.Interrupted`) and the run's last checkpoint stands."""
 EVAL_STREAM = 0xE7A1
 """Spawn key that separates evaluation draws from every training stream of a seed."""
 
@@ -78,7 +83,12 @@ class Evaluator:
         solved = np.zeros(k * r, dtype=bool)
         returns = np.zeros(k * r)
         max_q = torch.zeros(k)
+        signalled = None
         for _ in range(self.horizon):
+            if stop_requested():  # finish within a second of a signal (then checkpoint), or give up
+                signalled = signalled or time.monotonic()
+                if time.monotonic() - signalled > STOP_GRACE_S:
+                    raise Interrupted("a signal during a long evaluation")
             actions = self._actions(agent, obs, rngs, max_q)
             obs, reward, terminated, truncated, info = self.env.step(actions)
             returns += np.where(live, reward, 0.0)

@@ -2,10 +2,12 @@
 
 * `atomic_file` / `atomic_path`: write under a unique temporary name in the target's directory, fsync, then
   ``os.replace`` onto the target. A crash or SIGKILL at any point leaves the old file or the new one, never a
-  mix; the temporary is removed when the block raises. Temporary names start with ``.`` and contain
-  ``.tmp`` (`is_temporary`), so two writers never share one.
-* `FileLock`: an exclusive ``fcntl.flock`` on a lock file, taken without waiting; a second holder is refused
-  with the first one's pid. The kernel releases it when the process dies, however it dies.
+  mix; the temporary is removed when the block raises. Temporary names (`is_temporary`) carry the writer's
+  pid and a random token after ``.ecorl-tmp-``, so two writers never share one and no user file matches.
+  The target's directory must be a real directory (`train.safeio.real_dir`), not a link.
+* `FileLock`: an exclusive ``fcntl.flock`` on a lock file (opened with ``O_NOFOLLOW``, never truncated),
+  taken without waiting; a second holder is refused with the first one's pid. The kernel releases it
+  when the process dies, however it dies.
 * `die_with_parent`: a worker process asks Linux for SIGTERM when its parent dies.
 """
 
@@ -15,30 +17,39 @@ import ctypes
 import errno
 import fcntl
 import os
+import re
 import secrets
 import signal
+import stat
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO
 
-TEMP_MARK = ".tmp"
+from train.safeio import UnsafeFileError, real_dir
+
+TEMP_MARK = ".ecorl-tmp-"
 """Part of every temporary file name (see `temporary_name`)."""
+_TEMPORARY = re.compile(r"\.[^/]*\.ecorl-tmp-[0-9]+-[0-9a-f]{8}(\.[^./]+)?")
+"""What `temporary_name` makes, and nothing a user would name a file."""
+LOCK_BYTES = 24
+"""Size of what a lock file holds (its holder's pid, padded); a larger file is not a lock of ecorl's."""
 
 _replace = os.replace
 """The final rename (a module attribute so that kill tests can interrupt a write right before it)."""
 
 
 def temporary_name(path: Path) -> Path:
-    """A fresh hidden name beside ``path`` that keeps its suffix: ``.NAME.PID-RANDOM.tmp.SUFFIX``."""
-    token = f"{os.getpid()}-{secrets.token_hex(4)}"
-    return path.with_name(f".{path.stem}.{token}{TEMP_MARK}{path.suffix}")
+    """A fresh hidden name beside ``path`` that keeps its suffix: ``.STEM.ecorl-tmp-PID-RANDOM.SUFFIX``."""
+    return path.with_name(f".{path.stem}{TEMP_MARK}{os.getpid()}-{secrets.token_hex(4)}{path.suffix}")
 
 
 def is_temporary(name: str) -> bool:
-    """True for a name made by `temporary_name` (what an interrupted write may leave behind)."""
-    return name.startswith(".") and TEMP_MARK in name
+    """True for a name made by `temporary_name` (what an interrupted write may leave behind), and for no
+    name a user would choose (``.notes.tmp.txt`` is not one).
+    """
+    return _TEMPORARY.fullmatch(name) is not None
 
 
 def fsync_path(path: Path) -> None:
@@ -59,7 +70,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     The parent directory is created. If the block raises, the temporary is removed and ``path`` is untouched.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    real_dir(path.parent)
     tmp = temporary_name(path)
     try:
         yield tmp
@@ -97,6 +108,26 @@ class LockedError(RuntimeError):
     """Another process holds the lock (the message names its pid and what to do)."""
 
 
+def open_lock_file(path: Path) -> int:
+    """A descriptor of the lock file ``path``, created if missing; never a link, never someone else's file.
+
+    Opened with ``O_NOFOLLOW | O_CREAT`` and no truncation: a symbolic link, a FIFO, a file with other
+    hard links or one larger than `LOCK_BYTES` is refused (it cannot be a lock ecorl made) and left as it is.
+    """
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
+    except OSError as err:
+        if err.errno != errno.ELOOP:
+            raise
+        raise UnsafeFileError(f"{path} is a symbolic link, not a lock file of ecorl; remove the link") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1 or info.st_size > LOCK_BYTES:
+        os.close(fd)
+        raise UnsafeFileError(f"{path} is not a lock file of ecorl (not a small regular file with one link); "
+                              f"move it away")
+    return fd
+
+
 class FileLock:
     """An exclusive, non-blocking advisory lock on ``path`` (created if needed), held until `release`.
 
@@ -109,7 +140,7 @@ class FileLock:
 
     def acquire(self) -> FileLock:
         """Take the lock or raise `LockedError` naming the holder's pid."""
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = open_lock_file(self.path)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as err:
@@ -119,15 +150,14 @@ class FileLock:
                 raise LockedError(f"{self.what} is in use by another ecorl process (pid {holder}); "
                                   f"{self.advice}") from None
             raise
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        os.pwrite(fd, f"{os.getpid()}\n".ljust(LOCK_BYTES).encode(), 0)
         self._fd = fd
         return self
 
     def release(self) -> None:
-        """Give the lock up (idempotent); the lock file stays, empty."""
+        """Give the lock up (idempotent); the lock file stays, blank."""
         if self._fd is not None:
-            os.ftruncate(self._fd, 0)
+            os.pwrite(self._fd, b" " * LOCK_BYTES, 0)
             fcntl.flock(self._fd, fcntl.LOCK_UN)
             os.close(self._fd)
             self._fd = None

@@ -1,4 +1,4 @@
-"""Which conditions can train packed in one learner, on which device, and whether their replay fits.
+"""Which conditions can train packed in one learner, and on which device.
 
 Conditions of one task pack into one trainer when they differ only in what a learner row may hold on its
 own (`PER_ROW`): the environment's knobs, the learning rate, the exploration schedule, the RND flag and the
@@ -9,12 +9,10 @@ the packed gradient step and the lockstep loop run it once for all rows.
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Sequence
 
 import torch
 
-from train.agent.replay import Replay
 from train.config import TrainConfig
 
 PER_ROW = {"env": ("dynamism", "shaping", "reset_free", "reward", "horizon", "env_kwargs"),
@@ -86,22 +84,3 @@ def check_device(device: str) -> None:
                              f"use cuda:0 .. cuda:{torch.cuda.device_count() - 1}")
         return
     raise ValueError(f"unknown device {device!r}; use cpu, cuda or cuda:N")
-
-
-def _memory_bytes() -> int | None:
-    """Physical memory of this machine in bytes (None where unknown)."""
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
-def check_replay_memory(num_agents: int, capacity: int, obs_dim: int, binary: bool, float_dtype: str) -> int:
-    """Refuse a replay buffer larger than this machine's memory before allocating it; return its bytes."""
-    need = Replay.bytes_needed(num_agents, capacity, obs_dim, binary, float_dtype)
-    have = _memory_bytes()
-    if have is not None and need > have:
-        raise ValueError(f"the replay buffers need {need / 2**30:.1f} GiB ({num_agents} seeds x {capacity} slots x "
-                         f"{need // (num_agents * capacity)} bytes), more than this machine's "
-                         f"{have / 2**30:.1f} GiB of memory; use fewer --seeds or a smaller --buffer-size")
-    return need

@@ -10,6 +10,7 @@ and by default the policy shipped for the task in ``assets/policies/``.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import zipfile
 from collections.abc import Sequence
@@ -26,6 +27,8 @@ from train.config import TrainConfig
 from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
 from train.fileio import atomic_file
 from train.rundir import RunDir, RunDirError
+from train.safeio import load_json, loads_json, open_regular, read_npy, read_text
+from train.statecheck import check_counter
 from train.tasks import get_task, probe
 
 POLICY_DIR = Path(__file__).resolve().parents[1] / "assets" / "policies"
@@ -53,9 +56,12 @@ class Policy:
         d = self.cfg.dqn
         self._net = QNetwork(info.view_dim, info.obs_dim - info.view_dim, info.num_actions, d.view_layers,
                              d.inventory_layers, d.head_layers, d.inventory_repeat)
-        if self.params.shape != (1, self._net.num_params):
-            raise ValueError(f"policy parameters have shape {tuple(self.params.shape)}, but the network of "
-                             f"this configuration needs (1, {self._net.num_params})")
+        if self.params.shape != (1, self._net.num_params) or self.params.dtype != torch.float32:
+            raise ValueError(f"policy parameters have shape {tuple(self.params.shape)} and dtype {self.params.dtype}, "
+                             f"but the network of this configuration needs (1, {self._net.num_params}) float32")
+        if not torch.isfinite(self.params).all():
+            raise ValueError(f"the policy holds {int((~torch.isfinite(self.params)).sum())} NaN or infinite "
+                             f"parameters; it cannot act (use a checkpoint of a healthy run)")
         self._bound = self._net.bind(self.params)
 
     @property
@@ -104,7 +110,7 @@ class Policy:
 
 def run_config(run_dir: Path) -> TrainConfig:
     """The `TrainConfig` a run directory was made with."""
-    return TrainConfig.from_dict(json.loads((run_dir / "config.json").read_text()))
+    return TrainConfig.from_dict(load_json(run_dir / "config.json"))
 
 
 def resolve_run_dir(path: str | Path) -> Path:
@@ -124,12 +130,16 @@ def validation_success(run_dir: Path, step: int | None = None) -> dict[int, floa
     empty if there is no such evaluation.
     """
     path = run_dir / "metrics.csv"
-    rows = list(csv.DictReader(path.open())) if path.exists() else []
+    rows = list(csv.DictReader(io.StringIO(read_text(path)))) if path.exists() or path.is_symlink() else []
     if not rows:
         return {}
-    step = max(int(r["step"]) for r in rows) if step is None else step
     seeds = run_config(run_dir).run.seed_list
-    return {seeds.index(int(r["seed"])): float(r["success"]) for r in rows if int(r["step"]) == step}
+    try:
+        step = max(int(r["step"]) for r in rows) if step is None else step
+        return {seeds.index(int(r["seed"])): float(r["success"]) for r in rows if int(r["step"]) == step}
+    except (KeyError, TypeError, ValueError) as err:
+        raise ValueError(f"{path} is not a metrics file of this run ({err}); restore it, or delete it to "
+                         f"rebuild it from the checkpoint with 'ecorl train TASK --resume'") from None
 
 
 def _load_run(path: str | Path) -> tuple[Path, dict[str, Any]]:
@@ -137,9 +147,14 @@ def _load_run(path: str | Path) -> tuple[Path, dict[str, Any]]:
     run_dir = resolve_run_dir(path)
     state = RunDir(run_dir).read_checkpoint(keys=["agent/online"])
     try:
-        TrainConfig.from_dict(state["config"])
+        cfg = TrainConfig.from_dict(state["config"])
+        check_counter(state["step"], "step")
+        online = state["agent"]["online"]
+        if not isinstance(online, torch.Tensor) or online.ndim != 2 or online.shape[0] != cfg.run.seeds:
+            raise ValueError(f"agent/online is not a ({cfg.run.seeds}, P) array")
     except (KeyError, TypeError, ValueError) as err:
-        raise RunDirError(f"{run_dir / CHECKPOINT_NAME} holds an unusable configuration ({err})") from None
+        raise RunDirError(f"{run_dir / CHECKPOINT_NAME} holds an unusable configuration or network ({err}); "
+                          f"it is not a checkpoint ecorl wrote") from None
     return run_dir, state
 
 
@@ -182,6 +197,13 @@ def _not_a_policy(path: Path, why: str) -> ValueError:
                       f"'ecorl export RUN_DIR --out FILE.npz'")
 
 
+def _read_policy_member(zf: zipfile.ZipFile, path: Path, name: str) -> np.ndarray:
+    """One array of a policy file, its header's size checked against its member's before allocating."""
+    info = zf.getinfo(f"{name}.npy")
+    with zf.open(info) as member:
+        return read_npy(member, min(info.file_size, MAX_POLICY_MEMBER_BYTES[f"{name}.npy"]), f"{path} {name!r}")
+
+
 def _read_policy_arrays(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
     """The parameters and the JSON header of a policy file, sizes checked before anything is read."""
     try:
@@ -192,11 +214,11 @@ def _read_policy_arrays(path: Path) -> tuple[np.ndarray, dict[str, Any]]:
                     raise _not_a_policy(path, f"no {name[:-4]!r} array")
                 if sizes[name] > limit:
                     raise _not_a_policy(path, f"{name[:-4]!r} holds {sizes[name]} bytes, more than {limit}")
-        with np.load(path, allow_pickle=False) as data:
-            params, header = data["params"], data["header"]
+        with open_regular(path) as file, zipfile.ZipFile(file) as zf:
+            params, header = (_read_policy_member(zf, path, name) for name in ("params", "header"))
         if header.dtype.kind != "U" or header.ndim != 0:
             raise _not_a_policy(path, f"header is {header.dtype} {header.shape}, not a JSON string")
-        header = json.loads(str(header))
+        header = loads_json(str(header), f"the header of {path}")
     except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as err:
         if isinstance(err, ValueError) and "not an ecorl policy file" in str(err):
             raise
@@ -211,8 +233,9 @@ def load_policy_file(path: str | Path) -> Policy:
     archive, oversized arrays, parameters that are not finite float32, another format).
     """
     path = Path(path)
-    if not zipfile.is_zipfile(path):
-        raise _not_a_policy(path, "not an .npz archive")
+    with open_regular(path) as file:
+        if not zipfile.is_zipfile(file):
+            raise _not_a_policy(path, "not an .npz archive")
     params, header = _read_policy_arrays(path)
     if header.get("format") != POLICY_FORMAT:
         raise ValueError(f"{path} has policy format {header.get('format')!r}, this ecorl reads {POLICY_FORMAT}")

@@ -27,6 +27,9 @@ from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, CheckpointError, lega
 from train.checkpoint import write_checkpoint as _write_checkpoint
 from train.config import TrainConfig
 from train.fileio import FileLock, LockedError, atomic_file, atomic_write, is_temporary
+from train.memory import checkpoint_limit
+from train.safeio import UnsafeFileError, real_dir
+from train.statecheck import check_counter
 
 __all__ = ["METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write", "check_same_run"]
 
@@ -39,6 +42,10 @@ training reward since the previous evaluation; ``steps_per_s`` environment steps
 
 LOCK_NAME = ".lock"
 """The lock file of a run directory (held by the one process that writes the run)."""
+
+
+SUBDIRS = ("visits", "tensorboard")
+"""Directories inside a run directory that ecorl writes into (never through a link)."""
 
 
 class RunDirError(RuntimeError):
@@ -68,10 +75,17 @@ class RunDir:
         return False
 
     def is_empty(self) -> bool:
-        """True if the directory is missing or holds nothing but its lock and interrupted temporaries."""
-        if not self.path.exists():
-            return True
-        return all(p.name == LOCK_NAME or is_temporary(p.name) for p in self.path.iterdir())
+        """True if the directory is missing or holds nothing but its lock and interrupted temporaries (and
+        the config.json of a run stopped before its first checkpoint, which holds no progress).
+        """
+        return not self.path.exists() or self.never_started()
+
+    def never_started(self) -> bool:
+        """True if the directory holds nothing but a lock, temporaries and config.json: a run stopped (or out
+        of disk) before its first checkpoint was complete.
+        """
+        return self.path.is_dir() and all(p.name in (LOCK_NAME, "config.json") or is_temporary(p.name)
+                                          for p in self.path.iterdir())
 
     def lock(self) -> None:
         """Take the run's lock for the rest of this process (or until `unlock`); refuse if another holds it."""
@@ -79,10 +93,14 @@ class RunDir:
             return
         if self.path.exists() and not self.path.is_dir():
             raise RunDirError(f"--out {self.path} is a file, not a directory; choose a directory path")
-        self.path.mkdir(parents=True, exist_ok=True)
         try:
+            real_dir(self.path)
             self._lock.acquire()
-        except LockedError as err:
+            for name in SUBDIRS:  # refused now, not at the first evaluation
+                if (self.path / name).is_symlink() or (self.path / name).exists():
+                    real_dir(self.path / name)
+        except (LockedError, UnsafeFileError) as err:
+            self._lock.release()
             raise RunDirError(str(err)) from None
         for stale in self.path.iterdir():  # left by a killed writer; this process is now the only one
             if is_temporary(stale.name) and stale.is_file():
@@ -98,8 +116,7 @@ class RunDir:
             raise RunDirError(f"--out {self.path} is a file, not a directory; choose a directory path")
         if resume:
             if not self.path.is_dir() or not self.has_checkpoint():
-                raise RunDirError(f"cannot resume: {self.path} holds no {CHECKPOINT_NAME}. Start a fresh run "
-                                  f"(drop --resume) with an empty or new --out directory.")
+                raise RunDirError(self._no_checkpoint_message())
             self.lock()
             return
         if not self.is_empty():
@@ -110,6 +127,14 @@ class RunDir:
             raise RunDirError(f"run directory {self.path} is not empty; choose another --out")
         self.write_config(cfg)
 
+    def _no_checkpoint_message(self) -> str:
+        """Why a directory without a checkpoint cannot be resumed, and what to do instead."""
+        if self.never_started():
+            return (f"cannot resume: the run in {self.path} was stopped before its first {CHECKPOINT_NAME} was "
+                    f"complete, so it holds no progress; start it afresh with the same command without --resume")
+        return (f"cannot resume: {self.path} holds no {CHECKPOINT_NAME}. Start a fresh run (drop --resume) with an "
+                f"empty or new --out directory.")
+
     def write_config(self, cfg: TrainConfig) -> None:
         """(Re)write config.json with ``cfg``."""
         atomic_write(self.config_path, (json.dumps(cfg.to_dict(), indent=2) + "\n").encode())
@@ -118,13 +143,17 @@ class RunDir:
         """Write ``payload`` as a data-only checkpoint (`train.checkpoint`), atomically."""
         _write_checkpoint(self.checkpoint_path, payload)
 
-    def read_checkpoint(self, keys: list[str] | None = None) -> dict[str, Any]:
-        """The verified checkpoint (only the arrays in ``keys`` when given); `RunDirError` if unusable."""
+    def read_checkpoint(self, keys: list[str] | None = None, limit: int | None = None) -> dict[str, Any]:
+        """The verified checkpoint (only the arrays in ``keys`` when given, at most ``limit`` bytes of them);
+        `RunDirError` if unusable.
+        """
+        if not self.has_checkpoint() and self.never_started():
+            raise RunDirError(self._no_checkpoint_message())
         if not self.has_checkpoint():
             raise RunDirError(f"{self.path} holds no {CHECKPOINT_NAME}; it is not a run directory of ecorl "
                               f"(or the run never reached its first checkpoint)")
         try:
-            return read_checkpoint(self.checkpoint_path, keys)
+            return read_checkpoint(self.checkpoint_path, keys, limit)
         except CheckpointError as err:
             raise RunDirError(str(err)) from None
 
@@ -132,14 +161,14 @@ class RunDir:
         """The checkpoint's configuration and the step the run stands at (reads no arrays)."""
         state = self.read_checkpoint(keys=[])
         try:
-            return TrainConfig.from_dict(state["config"]), int(state["step"])
+            return TrainConfig.from_dict(state["config"]), check_counter(state["step"], "step")
         except (KeyError, TypeError, ValueError) as err:
             raise RunDirError(f"{self.checkpoint_path} holds an unusable configuration ({err}); start a fresh "
                               f"run in another --out directory") from None
 
     def load_checkpoint(self, cfg: TrainConfig) -> dict[str, Any]:
         """Read and verify the checkpoint; refuse a corrupt one or one made with different settings."""
-        payload = self.read_checkpoint()
+        payload = self.read_checkpoint(limit=checkpoint_limit(cfg))
         check_same_run(TrainConfig.from_dict(payload["config"]), cfg, self.checkpoint_path)
         return payload
 
@@ -165,7 +194,6 @@ class RunDir:
     def save_visits(self, visits: np.ndarray, step: int) -> None:
         """Save the lifetime visitation counts (seeds, rows, cols) as the latest and as a snapshot."""
         for path in (self.visits_path, self.path / "visits" / f"{step:09d}.npy"):
-            path.parent.mkdir(exist_ok=True)
             buf = io.BytesIO()
             np.save(buf, visits)
             atomic_write(path, buf.getvalue())

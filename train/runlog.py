@@ -17,6 +17,7 @@ import numpy as np
 
 from train.config import TrainConfig
 from train.rundir import RunDir
+from train.safeio import real_dir
 
 
 def postfix(rows: list[dict[str, Any]], num_agents: int) -> dict[str, str]:
@@ -121,18 +122,45 @@ def progress_bar(cfg: TrainConfig, initial: int, conditions: int = 1):
         bar.close()
 
 
+class Interrupted(KeyboardInterrupt):
+    """A signal stopped the run where it could not checkpoint: inside an evaluation, or a second signal.
+
+    The last checkpoint stands; a resumed run continues from it exactly.
+    """
+
+
+_STOPS: list[threading.Event] = []
+"""The events of the `stop_on_signal` blocks this process is inside."""
+
+
+def stop_requested() -> bool:
+    """True once SIGINT/SIGTERM arrived inside a `stop_on_signal` block (polled by long loops)."""
+    return any(stop.is_set() for stop in _STOPS)
+
+
 @contextmanager
 def stop_on_signal():
-    """An event set by SIGINT/SIGTERM while inside the block (main thread only; elsewhere never set)."""
+    """An event set by SIGINT/SIGTERM while inside the block (main thread only; elsewhere never set).
+
+    The first signal sets it (the run stops at the end of its epoch, with a checkpoint; an evaluation polls
+    `stop_requested` and stops at once, raising `Interrupted`); a second signal raises `Interrupted`.
+    """
     stop = threading.Event()
     if threading.current_thread() is not threading.main_thread():
         yield stop
         return
-    handler = lambda signum, frame: stop.set()  # noqa: E731
+
+    def handler(signum, frame):
+        if stop.is_set():
+            raise Interrupted(f"a second {signal.Signals(signum).name}")
+        stop.set()
+
     previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    _STOPS.append(stop)
     try:
         yield stop
     finally:
+        _STOPS.remove(stop)
         for sig, old in previous.items():
             signal.signal(sig, old)
 
@@ -153,7 +181,7 @@ class RunLogger:
                 raise ImportError(f"--tensorboard needs the tensorboard package ({err}); install it with "
                                   f"pip install 'ecorl[tensorboard]', or drop --tensorboard") from err
             purge = None if resumed_at is None else resumed_at + 1
-            self.writer = SummaryWriter(log_dir=str(run_dir.path / "tensorboard"), purge_step=purge)
+            self.writer = SummaryWriter(log_dir=str(real_dir(run_dir.path / "tensorboard")), purge_step=purge)
 
     def log(self, metric_rows: list[dict[str, Any]], visits: np.ndarray, step: int) -> None:
         """Persist the run's metrics after an evaluation (the rows of step ``step`` are its last ones)."""

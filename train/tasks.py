@@ -154,10 +154,12 @@ def restore_env_state(env: gym.vector.VectorEnv, state: dict[str, Any]) -> None:
         saved = state["worlds"]
         if set(saved) != set(worlds.dtype.names):
             raise ValueError("the saved grid worlds do not have this task's fields")
+        candidate = np.zeros_like(worlds)
         for name in worlds.dtype.names:
             _check_like(saved[name], worlds[name], f"world field {name!r}")
-        for name in worlds.dtype.names:
-            worlds[name] = saved[name]
+            candidate[name] = saved[name]
+        gridtasks.check_worlds(candidate, env.rules)  # the compiled engine trusts every index it reads
+        worlds[...] = candidate
         return
     if kind == "sync" and isinstance(env, gym.vector.SyncVectorEnv):
         if len(state["envs"]) != len(env.envs):

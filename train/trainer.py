@@ -25,14 +25,17 @@ import numpy as np
 import torch
 
 from train.agent.learner import STREAMS, DQNLearner, Learner, RowSettings, seed_streams
+from train.agent.network import QNetwork
 from train.config import TrainConfig
 from train.evaluate import Evaluator, evaluation_kwargs
-from train.packing import check_device, check_packable, check_replay_memory
+from train.memory import check_memory
+from train.packing import check_device, check_packable
 from train.rundir import RunDir, RunDirError
 from train.runlog import RunLogger, postfix, progress_bar, stop_on_signal
+from train.statecheck import check_state
 from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state
 
-__all__ = ["CHECKPOINT_VERSION", "STREAMS", "Part", "Trainer", "check_replay_memory", "resolve", "seed_streams"]
+__all__ = ["CHECKPOINT_VERSION", "STREAMS", "Part", "Trainer", "resolve", "seed_streams"]
 
 CHECKPOINT_VERSION = 2
 """Version of a run's checkpoint state (the layout inside the checkpoint file, `train.checkpoint`)."""
@@ -92,8 +95,10 @@ class Trainer:
         # CPU arithmetic is ~100x slower; flushing only changes values below ~1e-38 (to zero).
         torch.set_flush_denormal(True)
         settings = [RowSettings(s, c.dqn, c.rnd) for c in cfgs for s in c.run.seed_list]
-        check_replay_memory(len(settings), cfgs[0].dqn.buffer_size, self.info.obs_dim, self.task.binary_obs,
-                            cfgs[0].dqn.float_obs_dtype)
+        d = cfgs[0].dqn
+        net = QNetwork(self.info.view_dim, self.info.obs_dim - self.info.view_dim, self.info.num_actions,
+                       d.view_layers, d.inventory_layers, d.head_layers, d.inventory_repeat)
+        check_memory(cfgs, self.info.obs_dim, math.prod(self.info.visit_shape), net.num_params, self.task.binary_obs)
         self.learner: Learner = DQNLearner(settings, self.info.obs_dim, self.info.view_dim, self.info.num_actions,
                                            self.task.binary_obs, run.device)
         self.parts: list[Part] = []
@@ -340,6 +345,7 @@ class Trainer:
             raise RunDirError(f"checkpoint layout version {state.get('version')} is not {CHECKPOINT_VERSION}; "
                               f"re-run the training with this ecorl in a new --out directory")
         try:
+            check_state(state, self, self.parts.index(part))  # every value, before any reaches torch or the engine
             self._load_arrays(part, state)
         except (KeyError, TypeError, ValueError, RuntimeError) as err:
             raise RunDirError(f"the checkpoint does not fit this run ({type(err).__name__}: {err}); start a "

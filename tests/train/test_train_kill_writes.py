@@ -50,9 +50,12 @@ def run_killed(args: list[str], module: str, attr: str, condition: str, nth: int
 
 
 def train_args(task: str, out: Path) -> list[str]:
-    """A small reset-free, dynamic run with checkpoints at steps 0, 400, 800 and 1200."""
+    """A small reset-free, dynamic run with checkpoints at steps 0, 400, 800 and 1200 (the food collector's
+    evaluations long enough to collect spheres and touch walls, so that they are compared too).
+    """
+    horizon = "300" if task == "foodcollector" else "10"
     return ["train", task, "--steps", "1200", "--epoch-steps", "200", "--updates-per-epoch", "20", "--eval-every",
-            "400", "--checkpoint-every", "400", "--eval-rollouts", "2", "--eval-horizon", "10", "--buffer-size",
+            "400", "--checkpoint-every", "400", "--eval-rollouts", "2", "--eval-horizon", horizon, "--buffer-size",
             "2000", "--seeds", "2", "--dynamism", "0.5", "--reset-free", "--no-progress", "--out", str(out)]
 
 

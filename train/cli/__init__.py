@@ -41,3 +41,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UserError as err:
         print(f"ecorl {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except (OSError, MemoryError, *_file_errors()) as err:  # a file, a disk or a run directory, not a bug
+        why = " ".join(str(err).split()) or type(err).__name__
+        if isinstance(err, MemoryError):
+            why = f"out of memory ({why}); ask for less (fewer seeds, a smaller buffer or horizon)"
+        elif isinstance(err, OSError) and err.errno is not None:
+            why = f"{why}; check the path, its permissions and the free disk space, or choose another --out"
+        print(f"ecorl {args.command}: error: {why}", file=sys.stderr)
+        return 2
+
+
+def _file_errors() -> tuple[type[BaseException], ...]:
+    """The exception types that mean a crafted or unusable file (from the modules already imported)."""
+    names = (("train.safeio", "UnsafeFileError"), ("train.rundir", "RunDirError"),
+             ("train.checkpoint", "CheckpointError"))
+    return tuple(getattr(sys.modules[module], name) for module, name in names if module in sys.modules)

@@ -54,6 +54,14 @@ def positive(text: str) -> int:
     return value
 
 
+def nonnegative(text: str) -> int:
+    """An integer >= 0, e.g. a seed (an argparse type)."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text}")
+    return value
+
+
 def probability(text: str) -> float:
     """A number in [0, 1] (an argparse type)."""
     value = float(text)

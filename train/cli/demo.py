@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from train.cli.common import positive
+from train.cli.common import nonnegative, positive
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -16,7 +16,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "and tasks.png, a still of each side by side.")
     parser.add_argument("--out", type=Path, default=Path("results/demo"), help="output folder (default: %(default)s)")
     parser.add_argument("--steps", type=positive, default=150, help="steps per video (default: %(default)s)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of worlds and actions (default: %(default)s)")
+    parser.add_argument("--seed", type=nonnegative, default=0, help="seed of worlds and actions (default: %(default)s)")
     parser.set_defaults(handler=handle)
     return parser
 

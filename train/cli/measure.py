@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from train.cli.common import DEFAULT_OUT, UserError, positive
+from train.cli.common import DEFAULT_OUT, UserError, nonnegative, positive
 from train.experiments.catalog import GRID_TASKS
 
 
@@ -24,7 +24,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--seeds", type=positive, default=25, help="worlds (seeds) per condition (default: 25)")
     parser.add_argument("--steps", type=positive, default=50_000,
                         help="step budget per seed (hitting time is censored there; default: 50000)")
-    parser.add_argument("--seed", type=int, default=0, help="first seed (default: 0)")
+    parser.add_argument("--seed", type=nonnegative, default=0, help="first seed (default: 0)")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT / "measure",
                         help="directory for the tables (default: results/measure)")
     parser.set_defaults(handler=handle)

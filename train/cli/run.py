@@ -48,6 +48,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--minutes", type=float, default=None,
                         help="time budget: measure this machine's speed first, then size the steps per seed so that "
                              "every run and the report end within this many minutes (at most the budget's steps)")
+    parser.add_argument("--restart", nargs="+", metavar="C", default=(),
+                        help="train these conditions again from scratch, deleting their results and checkpoint "
+                             "(e.g. one that finished but lost its checkpoint)")
     parser.add_argument("--dry-run", action="store_true", help="print the runs (and their state), run nothing")
     parser.add_argument("--report", action="store_true", help="write the report of OUT/EXPERIMENT afterwards")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
@@ -80,7 +83,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         parser.error("name an EXPERIMENT (or pass --list)")
     try:
         exp = get_experiment(args.experiment)
-        jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition, args.device)
+        jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition, args.restart,
+                    args.device)
     except ValueError as err:
         parser.error(str(err))
     if args.out.exists() and not args.out.is_dir():
@@ -98,7 +102,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     if args.dry_run:
         print_plan(jobs)
         return 0
-    write_experiment_file(exp, args.budget, jobs, args.out)
+    with user_errors(ValueError, OSError):
+        write_experiment_file(exp, args.budget, jobs, args.out)
     where = args.out / exp.name
     print(f"ecorl run {exp.name} ({exp.paper}): {len(jobs)} runs, budget {args.budget}, executor {args.executor}, "
           f"results in {where}", file=sys.stderr)
@@ -113,6 +118,10 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         return 130
     counts = summarize(results)
     print("runs: " + ", ".join(f"{n} {status}" for status, n in sorted(counts.items())), file=sys.stderr)
+    if counts.get("kept"):
+        print("some conditions hold results without a checkpoint and were kept as they are (see KEPT above); "
+              "re-run with --restart CONDITION to train them again from scratch", file=sys.stderr)
+        return 1
     if counts.get("failed") or counts.get("interrupted"):
         print("some runs did not finish; re-run the same command to retry/resume them", file=sys.stderr)
         return 1

@@ -94,12 +94,14 @@ def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
         raise ValueError(f"--out {out} is a file, not a directory; choose a directory path")
     if args.resume:
         cfg = resume_config(out, args.task, {**given, "task": args.task})
+    cfg.check_trains()
     return cfg, out
 
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Build the config and the trainer, then train; print a one-line summary per evaluation at the end."""
     from train.rundir import RunDirError
+    from train.runlog import Interrupted
     from train.trainer import Trainer
 
     with user_errors(RunDirError, ValueError, TypeError, KeyError, OSError):
@@ -116,6 +118,10 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
               f"override)", file=sys.stderr)
     try:
         rows = trainer.run()
+    except Interrupted as why:
+        print(f"stopped by {why} at step {trainer.step}; the checkpoint of step {trainer.last_checkpoint} stands; "
+              f"continue with: ecorl train {cfg.env.task} --resume --out {out}", file=sys.stderr)
+        return 130
     finally:
         trainer.close()
     if trainer.epoch < trainer.cfg.num_epochs:

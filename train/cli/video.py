@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from train.cli.common import positive, probability, user_errors
+from train.cli.common import nonnegative, positive, probability, user_errors
 from train.rundir import RunDirError
 
 
@@ -31,7 +31,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="whole episodes to film, each at most the test horizon (default: 3)")
     parser.add_argument("--steps", type=positive, default=None,
                         help="film exactly this many steps instead (new episodes after each end)")
-    parser.add_argument("--seed", type=int, default=0, help="first layout and exploration seed (default: 0)")
+    parser.add_argument("--seed", type=nonnegative, default=0, help="first layout and exploration seed (default: 0)")
     parser.add_argument("--agent", type=int, default=0, help="which of the run's seeds acts, by index (default: 0)")
     parser.add_argument("--epsilon", type=probability, default=0.05,
                         help="exploration of the policy (default: 0.05)")

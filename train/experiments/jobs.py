@@ -18,14 +18,23 @@ from typing import Any
 from train.config import TrainConfig
 from train.experiments import table1
 from train.fileio import atomic_text, is_temporary
+from train.runlog import Interrupted
+from train.safeio import UnsafeFileError, load_json
 
 DONE_FILE = "done.json"
 """Marker of a finished run (atomically written, with its step budget)."""
 
 
-TRAINER_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "progress.json")
-"""What a run that never reached its first checkpoint may have left (besides its lock and interrupted
-temporaries, `train.fileio.is_temporary`); cleared before it starts again."""
+UNSTARTED_FILES = ("config.json", "progress.json")
+"""What a run stopped before its first checkpoint leaves (besides its lock and interrupted temporaries,
+`train.fileio.is_temporary`); cleared before it starts again. Anything else is a result, never deleted
+unless the job is restarted."""
+RESULT_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "tensorboard", "progress.json", DONE_FILE)
+"""What ``--restart`` clears (with the checkpoint) before a condition starts again."""
+
+
+class FinishedWithoutCheckpoint(RuntimeError):
+    """A condition holds results but no checkpoint to extend them from (the message says what to do)."""
 
 
 @dataclass(frozen=True)
@@ -40,6 +49,8 @@ class Job:
     """`TrainConfig.to_dict()`, or for a measurement {'measure', 'task', 'seeds', 'steps'}."""
     cost: float
     """Relative cost (seed-steps), to start the longest jobs first."""
+    restart: bool = False
+    """Clear the condition's results and checkpoint and train it from scratch (``ecorl run --restart``)."""
 
     @property
     def name(self) -> str:
@@ -76,7 +87,8 @@ class JobResult:
 
     job: str
     status: str
-    """'done' (ran to its budget now), 'skipped' (already done), 'interrupted' or 'failed'."""
+    """'done' (ran to its budget now), 'skipped' (already done), 'interrupted', 'failed' or 'kept' (results
+    without a checkpoint, left as they are: `FinishedWithoutCheckpoint`)."""
     seconds: float = 0.0
     error: str = ""
 
@@ -84,12 +96,15 @@ class JobResult:
 def read_done(run_dir: str | Path) -> dict[str, Any] | None:
     """The done marker of a run directory, or None."""
     path = Path(run_dir) / DONE_FILE
-    return json.loads(path.read_text()) if path.exists() else None
+    if not path.exists() and not path.is_symlink():
+        return None
+    done = load_json(path)
+    return done if isinstance(done, dict) else {}
 
 
 def job_is_done(job: Job) -> bool:
     """True when the job's directory holds a done marker that covers the job's budget and settings."""
-    done = read_done(job.run_dir)
+    done = None if job.restart else read_done(job.run_dir)
     if done is None:
         return False
     if job.is_measurement:
@@ -101,7 +116,7 @@ def job_is_done(job: Job) -> bool:
 
     saved = Path(job.run_dir) / "config.json"
     if saved.exists():
-        check_same_run(TrainConfig.from_dict(json.loads(saved.read_text())), cfg, saved)
+        check_same_run(TrainConfig.from_dict(load_json(saved)), cfg, saved)
     run = RunDir(job.run_dir)
     if not run.metrics_path.exists() and run.has_checkpoint():  # deleted by hand: rebuild it from the checkpoint
         run.lock()
@@ -112,21 +127,32 @@ def job_is_done(job: Job) -> bool:
     return True
 
 
-def _clear_unstarted(run_dir: Path) -> None:
-    """Remove what a run killed before its first checkpoint left behind (refuse to touch anything else)."""
+def _clear_unstarted(job: Job) -> None:
+    """Remove what a run stopped before its first checkpoint left (its config.json and temporaries); with
+    ``job.restart`` also its results. Results without a checkpoint are otherwise kept and reported
+    (`FinishedWithoutCheckpoint`); files ecorl did not write are never touched.
+    """
+    from train.checkpoint import CHECKPOINT_NAME
     from train.rundir import LOCK_NAME
 
+    run_dir = Path(job.run_dir)
     if not run_dir.exists():
         return
-    keep = {*TRAINER_FILES, DONE_FILE}
-    unknown = [p.name for p in run_dir.iterdir()
-               if p.name not in keep and p.name != LOCK_NAME and not is_temporary(p.name)]
+    clear = {*RESULT_FILES, CHECKPOINT_NAME} if job.restart else set(UNSTARTED_FILES)
+    names = {p.name for p in run_dir.iterdir()} - {LOCK_NAME}
+    unknown = sorted(n for n in names - clear if not is_temporary(n) and n not in RESULT_FILES)
     if unknown:
-        raise RuntimeError(f"{run_dir} holds no checkpoint but other files ({', '.join(sorted(unknown))}); "
+        raise RuntimeError(f"{run_dir} holds no checkpoint but other files ({', '.join(unknown)}); "
                            f"move them away or choose another --out")
+    results = sorted(n for n in names - clear if n in RESULT_FILES)
+    if results:
+        raise FinishedWithoutCheckpoint(
+            f"{job.name} holds results ({', '.join(results)}) but no {CHECKPOINT_NAME} to continue them from; "
+            f"they are kept as they are. To train it again from scratch (deleting them), re-run with "
+            f"--restart {job.condition}")
     for p in run_dir.iterdir():
-        if p.name != LOCK_NAME:
-            shutil.rmtree(p) if p.is_dir() else p.unlink()
+        if p.name in clear or is_temporary(p.name):
+            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
 
 
 def execute(job: Job) -> JobResult:
@@ -141,10 +167,23 @@ def execute(job: Job) -> JobResult:
         finished = _run_measurement(job) if job.is_measurement else _run_training(job)
         return JobResult(job.name, "done" if finished else "interrupted", time.perf_counter() - began)
     except Exception as err:  # reported to the caller, which carries on with the other jobs
-        from train.rundir import RunDirError
+        return _error_result(job, err, began)
 
-        why = " ".join(str(err).split()) if isinstance(err, RunDirError) else traceback.format_exc()
-        return JobResult(job.name, "failed", time.perf_counter() - began, why)
+
+def _error_result(job: Job, err: Exception, began: float) -> JobResult:
+    """What an exception means for a job: interrupted (the last checkpoint stands), kept (results without a
+    checkpoint), or failed (one line for bad input or a full disk, the traceback for a bug).
+    """
+    from train.rundir import RunDirError
+
+    seconds = time.perf_counter() - began
+    if isinstance(err, Interrupted):  # inside an evaluation, or a second signal
+        return JobResult(job.name, "interrupted", seconds)
+    if isinstance(err, FinishedWithoutCheckpoint):
+        return JobResult(job.name, "kept", seconds, str(err))
+    input_error = isinstance(err, (RunDirError, UnsafeFileError, OSError))  # a file or a full disk, not a bug
+    why = " ".join(str(err).split()) if input_error else traceback.format_exc()
+    return JobResult(job.name, "failed", seconds, why)
 
 
 def _open_run(job: Job):
@@ -156,9 +195,9 @@ def _open_run(job: Job):
     run = RunDir(job.run_dir)
     run.lock()
     try:
-        resume = run.has_checkpoint()
+        resume = run.has_checkpoint() and not job.restart
         if not resume:
-            _clear_unstarted(Path(job.run_dir))
+            _clear_unstarted(job)
     except BaseException:
         run.unlock()
         raise
@@ -200,35 +239,39 @@ def _run_training(job: Job) -> bool:
 def execute_pack(pack: Pack) -> list[JobResult]:
     """Run a pack's jobs not yet done in packed trainers, one per step at which they stand (usually one).
 
-    Exceptions are returned as failed results of every job they stopped, not raised.
+    Each condition gets its own result, as from `execute`: one that cannot open (kept results, a bad
+    checkpoint) does not stop the others; an error while training is every trained condition's. Exceptions
+    are returned, not raised.
     """
-    from train.rundir import RunDirError
-
     began = time.perf_counter()
     results, todo = [], []
     for job in pack.jobs:
         try:
             done = job_is_done(job)
         except Exception as err:  # e.g. a settings mismatch: this condition fails, the others run
-            results.append(JobResult(job.name, "failed", 0.0, " ".join(str(err).split())))
+            results.append(_error_result(job, err, began))
             continue
         if done:
             results.append(JobResult(job.name, "skipped"))
         else:
             todo.append(job)
     for group in _by_step(todo):
-        opened: list = []
+        members, opened = [], []
         try:
             for job in group:
-                opened.append(_open_run(job))
-            finished = _train(group, opened)
-            status = "done" if finished else "interrupted"
-            results += [JobResult(j.name, status, time.perf_counter() - began) for j in group]
+                try:
+                    opened.append(_open_run(job))
+                    members.append(job)
+                except Exception as err:
+                    results.append(_error_result(job, err, began))
+            if members:
+                finished = _train(members, opened)
+                results += [JobResult(j.name, "done" if finished else "interrupted", time.perf_counter() - began)
+                            for j in members]
         except Exception as err:
             for run, _ in opened:
                 run.unlock()
-            why = " ".join(str(err).split()) if isinstance(err, RunDirError) else traceback.format_exc()
-            results += [JobResult(j.name, "failed", time.perf_counter() - began, why) for j in group]
+            results += [_error_result(j, err, began) for j in members]
     return results
 
 

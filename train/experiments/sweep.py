@@ -33,6 +33,7 @@ from train.experiments.catalog import Experiment, job_config
 from train.experiments.executors import run_local, run_ray
 from train.experiments.jobs import Job, JobResult, Pack, job_is_done
 from train.fileio import atomic_text
+from train.safeio import load_json, real_dir
 
 EXPERIMENT_FILE = "experiment.json"
 """Description of an experiment directory, written by `run_experiment`."""
@@ -44,9 +45,10 @@ EXPERIMENT_LOCK = ".experiment.lock"
 
 def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Sequence[str] | None = None,
          seeds: int | None = None, steps: int | None = None, conditions: Sequence[str] | None = None,
-         device: str | None = None) -> list[Job]:
+         restart: Sequence[str] = (), device: str | None = None) -> list[Job]:
     """The jobs of ``experiment`` at a budget (optionally a task or condition subset, other seeds/steps, or
-    another device: a runtime setting, so runs move between devices freely).
+    another device: a runtime setting, so runs move between devices freely); conditions named in ``restart``
+    are cleared and trained from scratch.
     """
     budget = experiment.budget(budget_name)
     if seeds is not None or steps is not None:
@@ -63,9 +65,14 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
             else:
                 cfg = job_config(experiment, task, cond, budget)
                 cfg = cfg.replace(device=device) if device else cfg
+                cfg.check_trains()
                 jobs.append(Job(experiment.name, task, cond.name, run_dir, cfg.to_dict(),
                                 cfg.run.seeds * cfg.total_steps * (10 if task == "foodcollector" else 1)))
-    return jobs
+    unknown = sorted(set(restart) - {job.condition for job in jobs})
+    if unknown:
+        raise ValueError(f"--restart names {unknown[0]!r}, which is not a condition of this run; choose among "
+                         f"{', '.join(sorted({job.condition for job in jobs}))}")
+    return [replace(job, restart=True) if job.condition in restart else job for job in jobs]
 
 
 def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequence[Job], out: str | Path) -> Path:
@@ -75,7 +82,7 @@ def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequen
     from train.fileio import FileLock, LockedError
 
     path = Path(out).resolve() / experiment.name / EXPERIMENT_FILE
-    path.parent.mkdir(parents=True, exist_ok=True)
+    real_dir(path.parent)
     lock = FileLock(path.parent / EXPERIMENT_LOCK, f"{path}", "try again in a moment")
     deadline = time.monotonic() + 30.0
     while True:  # writers hold this lock for milliseconds: wait for it
@@ -101,7 +108,7 @@ def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequen
 def _read_json(path: Path) -> dict[str, Any]:
     """A JSON object from ``path`` ({} if missing or unreadable)."""
     try:
-        data = json.loads(path.read_text())
+        data = load_json(path)
     except (FileNotFoundError, ValueError):
         return {}
     return data if isinstance(data, dict) else {}
@@ -204,6 +211,8 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
         bar.update(1)
         if result.status == "failed":
             bar.write(f"FAILED {result.job}: {result.error}", file=sys.stderr)
+        elif result.status == "kept":
+            bar.write(f"KEPT {result.job}: {result.error}", file=sys.stderr)
         elif result.status == "done":
             bar.write(f"finished {result.job} in {result.seconds:.0f} s", file=sys.stderr)
 
@@ -259,8 +268,8 @@ def print_plan(jobs: Sequence[Job], file=None) -> None:
                     f"p={c.env.dynamism:g}, shaping={c.env.shaping}, "
                     f"{'reset-free' if c.env.reset_free else 'episodic'}, "
                     f"reward={c.env.reward}{', rnd' if c.rnd.rnd else ''}")
-        state = "done" if _safe_is_done(job) else ("resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists()
-                                                    else "new")
+        state = "restart" if job.restart else "done" if _safe_is_done(job) else (
+            "resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists() else "new")
         print(f"[{state:>6s}] {job.name}: {what}", file=file)
 
 

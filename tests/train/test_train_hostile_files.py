@@ -1,0 +1,319 @@
+"""Hostile run directories, round two: crafted files, links, FIFOs and sizes meet one-line errors.
+
+The table of bad inputs runs every subcommand in one subprocess (`fuzz_checkpoint.py cli`), under a time
+limit, so that a hang (a FIFO, /dev/zero) or a crash fails the test instead of stalling the run.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from train.checkpoint import read_checkpoint, write_checkpoint
+from train.cli import main
+from train.fileio import is_temporary, temporary_name
+
+REPO = Path(__file__).resolve().parents[2]
+FUZZ = Path(__file__).with_name("fuzz_checkpoint.py")
+TINY = ["--epoch-steps", "200", "--updates-per-epoch", "10", "--eval-every", "200", "--eval-rollouts", "2",
+        "--eval-horizon", "10", "--buffer-size", "1000", "--no-progress"]
+
+
+def one_line(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err, err
+    return err
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory) -> Path:
+    run = tmp_path_factory.mktemp("finished") / "run"
+    assert main(["train", "salad", "--steps", "400", "--seeds", "2", *TINY, "--out", str(run)]) == 0
+    return run
+
+
+def copy_of(run: Path, where: Path) -> Path:
+    shutil.copytree(run, where)
+    return where
+
+
+def rebuild(path: Path, members: dict[str, bytes], compress: frozenset = frozenset()) -> None:
+    """Rewrite the zip ``path`` with some members replaced (``compress``: stored deflated)."""
+    with zipfile.ZipFile(path) as zf:
+        old = {name: zf.read(name) for name in zf.namelist()}
+    old.update(members)
+    with zipfile.ZipFile(path, "w") as zf:
+        for name, data in old.items():
+            zf.writestr(name, data, zipfile.ZIP_DEFLATED if name in compress else zipfile.ZIP_STORED)
+
+
+def npy_header(shape: tuple, dtype: str = "<f4") -> bytes:
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": dtype, "fortran_order": False, "shape": shape})
+    return buf.getvalue()
+
+
+def manifest_bytes(text: str) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, np.frombuffer(text.encode(), dtype=np.uint8))
+    return buf.getvalue()
+
+
+def crafted_runs(finished: Path, root: Path) -> dict[str, Path]:
+    """Run directories whose checkpoint was crafted in one way each."""
+    runs = {}
+
+    def make(name: str) -> Path:
+        runs[name] = copy_of(finished, root / name)
+        return runs[name] / "checkpoint.npz"
+
+    bomb = npy_header((2, 10_000_000)) + bytes(80_000_000)
+    rebuild(make("zip bomb"), {"agent/online.npy": bomb}, frozenset({"agent/online.npy"}))
+    rebuild(make("huge header"), {"agent/online.npy": npy_header((2, 10**12))})
+    with zipfile.ZipFile(finished / "checkpoint.npz") as zf:
+        manifest = json.loads(np.load(io.BytesIO(zf.read("manifest.npy"))).tobytes())
+    rebuild(make("nested json"), {"manifest.npy": manifest_bytes("[" * 100_000 + "]" * 100_000)})
+    rebuild(make("step 1e999"), {"manifest.npy": manifest_bytes(
+        json.dumps({**manifest, "state": {**manifest["state"], "step": 0}}).replace('"step": 0', '"step": 1e999'))})
+    for name, change in (("grid_size 3000", lambda s: s["config"]["env"]["env_kwargs"].update(grid_size=3000)),
+                         ("nan weights", lambda s: s["agent"]["online"].fill_(float("nan"))),
+                         ("float64 weights", lambda s: s["agent"].update(online=s["agent"]["online"].double()))):
+        path = make(name)
+        state = read_checkpoint(path)
+        change(state)
+        write_checkpoint(path, state)
+    fifo = make("fifo checkpoint")
+    fifo.unlink()
+    os.mkfifo(fifo)
+    zero = make("dev zero checkpoint")
+    zero.unlink()
+    zero.symlink_to("/dev/zero")
+    metrics = runs["fifo metrics"] = copy_of(finished, root / "fifo metrics")
+    (metrics / "metrics.csv").unlink()
+    os.mkfifo(metrics / "metrics.csv")
+    return runs
+
+
+def table(finished: Path, root: Path) -> list[tuple[str, list[str], str]]:
+    """(label, ecorl arguments, expected part of the one-line error)."""
+    runs = crafted_runs(finished, root)
+    a_file = root / "a-file"
+    a_file.write_text("x")
+    cases = [
+        ("warm-up takes every step", ["train", "salad", "--steps", "1000", "--warmup-steps", "2000", "--out",
+                                      str(root / "w")], "warmup_steps (2000) must be below steps (1000)"),
+        ("memory of every per-seed buffer", ["train", "salad", "--seeds", "1000000", "--buffer-size", "2", "--out",
+                                             str(root / "m")], "use fewer --seeds"),
+        ("fifo checkpoint", ["train", "salad", "--resume", "--out", str(runs["fifo checkpoint"])], "FIFO"),
+        ("/dev/zero checkpoint", ["train", "salad", "--resume", "--out", str(runs["dev zero checkpoint"])],
+         "symbolic link"),
+        ("fifo metrics", ["export", str(runs["fifo metrics"]), "--out", str(root / "p.npz")], "FIFO"),
+        ("measure --seed -1", ["measure", "entropy", "--task", "salad", "--seed", "-1"], "expected an integer >= 0"),
+        ("demo --seed -1", ["demo", "--seed", "-1"], "expected an integer >= 0"),
+        ("video --seed -1", ["video", "salad", "--random", "--seed", "-1"], "expected an integer >= 0"),
+        ("video --out under a file", ["video", "salad", "--random", "--steps", "2", "--out",
+                                      str(a_file / "v.mp4")], "a-file"),
+        ("measure --out under a file", ["measure", "entropy", "--task", "salad", "--seeds", "1", "--steps", "2",
+                                        "--out", str(a_file / "m")], "a-file"),
+        ("demo --out under a file", ["demo", "--steps", "2", "--out", str(a_file / "d")], "a-file"),
+        ("run --out under a file", ["run", "rnd", "--budget", "smoke", "--task", "factory", "--out",
+                                    str(a_file / "r")], "a-file"),
+    ]
+    expected = {"zip bomb": "compressed", "huge header": "declares", "nested json": "nests deeper",
+                "step 1e999": "not finite", "grid_size 3000": "grid_size must be at most",
+                "nan weights": "NaN", "float64 weights": "dtype torch.float64"}
+    for name, message in expected.items():
+        run = runs[name]
+        cases += [(f"evaluate: {name}", ["evaluate", str(run), "--rollouts", "1"], message),
+                  (f"export: {name}", ["export", str(run), "--out", str(root / f"{name}.npz")], message)]
+    policy = root / "huge-policy.npz"
+    assert main(["export", str(finished), "--out", str(policy), "--agent", "0"]) == 0
+    rebuild(policy, {"params.npy": npy_header((1, 10**12))}, frozenset({"params.npy"}))
+    cases.append(("evaluate: policy file declaring (1, 10**12)", ["evaluate", str(policy), "--rollouts", "1"],
+                  "declares"))
+    cases.append(("video: huge header", ["video", "salad", "--policy", str(runs["huge header"]), "--steps", "2",
+                                         "--out", str(root / "v.mp4")], "declares"))
+    cases.append(("train --resume: zip bomb", ["train", "salad", "--resume", "--out", str(runs["zip bomb"])],
+                  "compressed"))
+    return cases
+
+
+def test_every_subcommand_answers_bad_input_in_one_line(finished, tmp_path):
+    cases = table(finished, tmp_path)
+    spec = tmp_path / "cases.json"
+    spec.write_text(json.dumps([[label, args] for label, args, _ in cases]))
+    began = time.monotonic()
+    proc = subprocess.run([sys.executable, str(FUZZ), "cli", str(spec)], capture_output=True, text=True, cwd=REPO,
+                          env={**os.environ, "PYTHONPATH": str(REPO)}, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    results = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert len(results) == len(cases), proc.stderr[-3000:]
+    for (label, _, message), r in zip(cases, results):
+        assert r["rc"] == 2, (label, r)
+        assert "\n" not in r["err"] and "Traceback" not in r["err"], (label, r)
+        assert message in r["err"], (label, r)
+    assert time.monotonic() - began < 240
+    assert not (tmp_path / "nan weights.npz").exists()  # refused before writing
+
+
+# ---- links and locks -----------------------------------------------------------------------------------
+
+
+def test_a_lock_link_is_refused_and_its_target_untouched(finished, tmp_path, capsys):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    fresh = tmp_path / "fresh"
+    fresh.mkdir()
+    (fresh / ".lock").symlink_to(victim)
+    assert main(["train", "salad", "--steps", "400", *TINY, "--out", str(fresh)]) == 2
+    assert "symbolic link" in one_line(capsys)
+    run = copy_of(finished, tmp_path / "run")
+    (run / ".lock").unlink()
+    (run / ".lock").symlink_to(victim)
+    assert main(["train", "salad", "--resume", "--out", str(run)]) == 2
+    assert "symbolic link" in one_line(capsys)
+    assert victim.read_text() == "precious"
+
+
+def test_the_experiment_lock_link_is_refused(tmp_path, capsys):
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious")
+    (tmp_path / "out" / "rnd").mkdir(parents=True)
+    (tmp_path / "out" / "rnd" / ".experiment.lock").symlink_to(victim)
+    assert main(["run", "rnd", "--budget", "smoke", "--task", "factory", "--out", str(tmp_path / "out"),
+                 "--no-progress"]) == 2
+    assert "symbolic link" in one_line(capsys)
+    assert victim.read_text() == "precious"
+
+
+@pytest.mark.parametrize("subdir", ["visits", "tensorboard"])
+def test_a_linked_subdirectory_is_refused(finished, tmp_path, subdir, capsys):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    run = copy_of(finished, tmp_path / "run")
+    shutil.rmtree(run / subdir, ignore_errors=True)
+    (run / subdir).symlink_to(outside, target_is_directory=True)
+    assert main(["train", "salad", "--resume", "--steps", "600", "--out", str(run)]) == 2
+    assert "not a directory" in one_line(capsys)
+    assert list(outside.iterdir()) == []
+
+
+def test_only_ecorls_own_temporaries_are_cleared(finished, tmp_path):
+    run = copy_of(finished, tmp_path / "run")
+    (run / ".notes.tmp.txt").write_text("mine")
+    assert main(["train", "salad", "--resume", "--steps", "600", "--out", str(run)]) == 0
+    assert (run / ".notes.tmp.txt").read_text() == "mine"
+    assert not is_temporary(".notes.tmp.txt") and not is_temporary(".x.tmp")
+    assert is_temporary(temporary_name(run / "metrics.csv").name)
+
+
+# ---- nothing finished is deleted; nothing unstarted is a dead end ------------------------------------
+
+
+def test_a_finished_condition_without_its_checkpoint_is_kept_until_restarted(tmp_path):
+    from train.experiments.catalog import get_experiment
+    from train.experiments.sweep import plan, run_jobs
+
+    exp = get_experiment("rnd")
+    [job] = plan(exp, "smoke", tmp_path, ["factory"])[:1]
+    assert [r.status for r in run_jobs([job], "local", workers=1, progress=False)] == ["done"]
+    run = Path(job.run_dir)
+    (run / "checkpoint.npz").unlink()
+    metrics = (run / "metrics.csv").read_bytes()
+    longer = [j for j in plan(exp, "smoke", tmp_path, ["factory"], steps=2 * job.config["run"]["steps"])
+              if j.condition == job.condition]
+    [result] = run_jobs(longer, "local", workers=1, progress=False)
+    assert result.status == "kept" and f"--restart {job.condition}" in result.error
+    assert (run / "metrics.csv").read_bytes() == metrics and (run / "done.json").exists()
+    restarted = plan(exp, "smoke", tmp_path, ["factory"], steps=2 * job.config["run"]["steps"],
+                     conditions=[job.condition], restart=[job.condition])
+    assert [r.status for r in run_jobs(restarted, "local", workers=1, progress=False)] == ["done"]
+    assert (run / "checkpoint.npz").exists()
+
+
+def test_a_kill_inside_the_first_checkpoint_write_is_no_dead_end(tmp_path, capsys):
+    from test_train_kill_writes import run_killed
+
+    run = tmp_path / "run"
+    args = ["train", "salad", "--steps", "400", *TINY, "--out", str(run)]
+    run_killed(args, "train.checkpoint", "_write_member", "args[1] == 'replay/obs'", nth=1)
+    assert not (run / "checkpoint.npz").exists()
+    assert main([*args, "--resume"]) == 2
+    assert "without --resume" in one_line(capsys)
+    assert main(args) == 0
+
+
+# ---- signals, warm-up, rendering, reproducible evaluation -------------------------------------------
+
+
+def test_a_signal_stops_an_endless_evaluation_within_seconds(tmp_path):
+    args = ["train", "salad", "--steps", "400", *TINY, "--eval-horizon", "1000000000000", "--out", str(tmp_path / "r")]
+    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(8)  # start-up, the warm-up and the first epoch: then the evaluation that never ends
+        assert proc.poll() is None
+        proc.send_signal(signal.SIGTERM)
+        began = time.monotonic()
+        code = proc.wait(timeout=10)
+        assert time.monotonic() - began < 3
+    finally:
+        proc.kill()
+    assert code == 130
+    assert "--resume" in proc.stderr.read().strip().splitlines()[-1]
+
+
+def test_the_grid_vector_env_refuses_to_render_before_reset():
+    import gridtasks
+
+    vec = gridtasks.GridTaskVectorEnv(gridtasks.SaladEnv, 2, render_mode="rgb_array")
+    with pytest.raises(RuntimeError, match="reset"):
+        vec.render()
+    vec.reset(seed=0)
+    assert len(vec.render()) == 2
+
+
+def test_a_seeded_food_collector_reset_is_a_pure_function_of_the_seed():
+    import gymnasium as gym
+
+    import foodcollector
+
+    def trajectory(env, seed, actions):
+        out = [env.reset(seed=seed)[0]]
+        return np.array(out + [env.step(a)[0] for a in actions])
+
+    actions = np.random.default_rng(0).integers(0, gym.make(foodcollector.ENV_ID).action_space.n, 100)
+    fresh = trajectory(gym.make(foodcollector.ENV_ID), 5, actions)
+    for push in range(gym.make(foodcollector.ENV_ID).action_space.n):  # end the first life against a wall
+        env = gym.make(foodcollector.ENV_ID)
+        trajectory(env, 1, [push] * 400)
+        assert np.array_equal(trajectory(env, 5, actions), fresh), push
+
+
+def _disk_full(*args, **kwargs):
+    import errno
+
+    raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_a_full_disk_is_one_line_under_train_and_run(tmp_path, monkeypatch, capsys):
+    from train.experiments.catalog import get_experiment
+    from train.experiments.jobs import execute
+    from train.experiments.sweep import plan
+
+    monkeypatch.setattr("train.fileio._replace", _disk_full)
+    assert main(["train", "salad", "--steps", "400", *TINY, "--out", str(tmp_path / "run")]) == 2
+    assert "No space left on device" in one_line(capsys)
+    job = plan(get_experiment("rnd"), "smoke", tmp_path / "sweep", ["factory"])[0]
+    result = execute(job)
+    assert result.status == "failed" and "No space left" in result.error and "\n" not in result.error
