@@ -116,3 +116,16 @@ def test_grid_worlds_stepped_on_threads_train_the_same_run(tmp_path):
     Trainer(TINY.replace(steps=300), tmp_path / "one").run()
     Trainer(TINY.replace(steps=300, env_threads=2), tmp_path / "two").run()
     assert metrics_without_timing(tmp_path / "two") == metrics_without_timing(tmp_path / "one")
+
+
+def test_a_condition_that_cannot_open_does_not_stop_its_pack(tmp_path):
+    jobs = plan(get_experiment("headline-waypoint"), "smoke", tmp_path, conditions=["static-reset-free",
+                                                                                    "dynamic-reset-free"])
+    kept = tmp_path / "headline-waypoint" / "salad" / "static-reset-free"
+    kept.mkdir(parents=True)
+    (kept / "metrics.csv").write_text("step,seed\n")  # results without a checkpoint: kept, never deleted
+    results = {r.job.rsplit("/", 1)[1]: r for r in execute_pack(Pack(tuple(jobs)))}
+    assert results["static-reset-free"].status == "kept" and "--restart static-reset-free" in \
+        results["static-reset-free"].error
+    assert results["dynamic-reset-free"].status == "done"
+    assert (kept / "metrics.csv").read_text() == "step,seed\n"
