@@ -317,3 +317,18 @@ def test_a_full_disk_is_one_line_under_train_and_run(tmp_path, monkeypatch, caps
     job = plan(get_experiment("rnd"), "smoke", tmp_path / "sweep", ["factory"])[0]
     result = execute(job)
     assert result.status == "failed" and "No space left" in result.error and "\n" not in result.error
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("name", ["metrics.csv", "config.json"])
+def test_report_reads_no_fifo_or_link(finished, tmp_path, capsys, name):
+    run = tmp_path / "run"
+    shutil.copytree(finished, run)
+    (run / name).unlink()
+    os.mkfifo(run / name)  # would block a plain open() forever
+    assert main(["report", str(run), "--out", str(tmp_path / "fifo")]) == 2
+    assert "not a regular file" in one_line(capsys)
+    (run / name).unlink()
+    (run / name).symlink_to(finished / name)
+    assert main(["report", str(run), "--out", str(tmp_path / "link")]) == 2
+    assert "symbolic link" in one_line(capsys)

@@ -18,6 +18,7 @@ from train.experiments.report.paper import paper_value
 from train.experiments.report.runs import ExperimentResults, Run
 from train.experiments.report.stats import CI_LEVEL, bootstrap_ci
 from train.fileio import atomic_file
+from train.safeio import MAX_TEXT_BYTES, open_regular, read_npy
 
 HEATMAP_POINTS = 4
 """Points of training shown in each heat-map row (the paper's Fig. 9-10 show four)."""
@@ -156,7 +157,13 @@ def visit_snapshots(run_dir: Path, points: int = HEATMAP_POINTS) -> list[tuple[i
     if not files:
         return []
     picks = sorted(set(np.round(np.linspace(0, len(files) - 1, points)).astype(int)))
-    return [(int(files[i].stem), np.load(files[i]).sum(0)) for i in picks]
+    return [(int(files[i].stem), _read_visits(files[i]).sum(0)) for i in picks]
+
+
+def _read_visits(path: Path) -> np.ndarray:
+    """One visitation snapshot: a regular file, its header and size checked before its data is read."""
+    with open_regular(path) as f:
+        return read_npy(f, MAX_TEXT_BYTES, str(path))
 
 
 def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import csv
-import json
+import io
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,6 +16,7 @@ from train.experiments.catalog import BUDGETS, EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
 from train.experiments.report.stats import blown, diverged
 from train.experiments.sweep import EXPERIMENT_FILE
+from train.safeio import load_json, read_text
 
 REFERENCE_DIR = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
 """Shipped paper-budget runs (metrics only): a report draws an experiment's quick curves over them."""
@@ -84,7 +86,7 @@ def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
     dropped, and a column a file lacks (or leaves empty) reads as ``missing``.
     """
     by_step: dict[int, dict[int, list[float]]] = {}
-    with open(path, newline="") as f:
+    with io.StringIO(read_text(path), newline="") as f:  # a regular file only: no link, FIFO or device
         for row in csv.DictReader(f):
             cells = [row.get(c) for c in columns]
             by_step.setdefault(int(row["step"]), {})[int(row["seed"])] = [
@@ -108,7 +110,7 @@ def read_metrics(path: Path, metric: str) -> tuple[np.ndarray, np.ndarray]:
 def run_gamma(run_dir: Path) -> float:
     """The discount of the run in ``run_dir`` (its config.json; the default where unreadable)."""
     try:
-        return float(json.loads((run_dir / "config.json").read_text())["dqn"]["gamma"])
+        return float(load_json(run_dir / "config.json")["dqn"]["gamma"])
     except (OSError, ValueError, KeyError, TypeError):
         return TrainConfig().dqn.gamma
 
@@ -142,7 +144,7 @@ def trusted_info(path: Path) -> dict[str, Any]:
     text shown comes from the known experiment, not from the file.
     """
     try:
-        saved = json.loads((path / EXPERIMENT_FILE).read_text())
+        saved = load_json(path / EXPERIMENT_FILE)
     except ValueError as err:
         raise ReportError(f"{path / EXPERIMENT_FILE} is not valid JSON ({err})") from None
     name = saved.get("name") if isinstance(saved, dict) else None
@@ -177,7 +179,7 @@ def load_experiment(path: Path) -> ExperimentResults:
             if cond.get("measure"):
                 table = run_dir / "table.csv"
                 if table.exists():
-                    with open(table, newline="") as f:
+                    with io.StringIO(read_text(table), newline="") as f:
                         for row in csv.DictReader(f):
                             result.measurements.append({
                                 "task": task, "measure": cond["measure"], "condition": row["condition"],
@@ -202,8 +204,10 @@ def load_reference(exp: ExperimentResults, reference_dir: Path | None = None) ->
 
 
 def is_run_dir(path: Path) -> bool:
-    """True for an ``ecorl train`` run directory (config.json and metrics.csv, no experiment.json)."""
-    files = (path / "config.json").is_file() and (path / "metrics.csv").is_file()
+    """True for an ``ecorl train`` run directory (config.json and metrics.csv, no experiment.json); entries
+    that are not regular files count here, so that reading them says what is wrong with them.
+    """
+    files = all(os.path.lexists(path / name) for name in ("config.json", "metrics.csv"))
     return files and not (path / EXPERIMENT_FILE).exists()
 
 
@@ -214,7 +218,7 @@ def load_single_run(path: Path) -> ExperimentResults:
     from train.config import TrainConfig
 
     try:
-        cfg = TrainConfig.from_dict(json.loads((path / "config.json").read_text()))
+        cfg = TrainConfig.from_dict(load_json(path / "config.json"))
     except (ValueError, TypeError, KeyError) as err:
         raise ReportError(f"{path / 'config.json'} is not a training configuration ({err})") from None
     env = cfg.env

@@ -18,6 +18,7 @@ import numpy as np
 from train.checkpoint import CHECKPOINT_NAME
 from train.experiments.report.runs import ExperimentResults, Run
 from train.fileio import atomic_text, atomic_write, is_temporary
+from train.safeio import load_json
 
 VIDEO_INFO = "video.json"
 """Sidecar of a filmed run's ``video.mp4``: the seed filmed and the episodes solved."""
@@ -44,7 +45,7 @@ def film_best_seed(run: Run, target: Path) -> Path:
 def _first_seed(run_dir: Path) -> int:
     """The run's first seed number (0 when config.json does not say)."""
     try:
-        return int(json.loads((run_dir / "config.json").read_text())["run"]["first_seed"])
+        return int(load_json(run_dir / "config.json")["run"]["first_seed"])
     except (OSError, ValueError, KeyError, TypeError):
         return 0
 
@@ -85,7 +86,7 @@ def caption_of(video: Path, root: Path) -> str:
     """Where the video comes from and, from its sidecar, the seed filmed and how its episodes went."""
     where = video.parent.relative_to(root).as_posix() if video.name == "video.mp4" else video.name
     try:
-        info = json.loads(video.with_name(VIDEO_INFO).read_text()) if video.name == "video.mp4" else {}
+        info = load_json(video.with_name(VIDEO_INFO)) if video.name == "video.mp4" else {}
     except (OSError, ValueError):
         info = {}
     if not isinstance(info, dict) or "seed" not in info:
