@@ -79,8 +79,6 @@ def checkpoint_limit(cfg: TrainConfig) -> int:
 
     task = get_task(cfg.env.task)
     info = probe(task, cfg.env)
-    d = cfg.dqn
-    params = QNetwork(info.view_dim, info.obs_dim - info.view_dim, info.num_actions, d.view_layers,
-                      d.inventory_layers, d.head_layers, d.inventory_repeat).num_params
+    params = QNetwork.from_config(info.view_dim, info.obs_dim, info.num_actions, cfg.dqn).num_params
     parts = estimate_bytes(cfg, info.obs_dim, math.prod(info.visit_shape), params, task.binary_obs)
     return 2 * sum(parts.values()) + (64 << 20)

@@ -53,9 +53,7 @@ class Policy:
 
     def __post_init__(self) -> None:
         self._info = info = probe(get_task(self.cfg.env.task), self.cfg.env)
-        d = self.cfg.dqn
-        self._net = QNetwork(info.view_dim, info.obs_dim - info.view_dim, info.num_actions, d.view_layers,
-                             d.inventory_layers, d.head_layers, d.inventory_repeat)
+        self._net = QNetwork.from_config(info.view_dim, info.obs_dim, info.num_actions, self.cfg.dqn)
         if self.params.shape != (1, self._net.num_params) or self.params.dtype != torch.float32:
             raise ValueError(f"policy parameters have shape {tuple(self.params.shape)} and dtype {self.params.dtype}, "
                              f"but the network of this configuration needs (1, {self._net.num_params}) float32")

@@ -95,12 +95,9 @@ class Trainer:
         # CPU arithmetic is ~100x slower; flushing only changes values below ~1e-38 (to zero).
         torch.set_flush_denormal(True)
         settings = [RowSettings(s, c.dqn, c.rnd) for c in cfgs for s in c.run.seed_list]
-        d = cfgs[0].dqn
-        net = QNetwork(self.info.view_dim, self.info.obs_dim - self.info.view_dim, self.info.num_actions,
-                       d.view_layers, d.inventory_layers, d.head_layers, d.inventory_repeat)
+        net = QNetwork.from_config(self.info.view_dim, self.info.obs_dim, self.info.num_actions, cfgs[0].dqn)
         check_memory(cfgs, self.info.obs_dim, math.prod(self.info.visit_shape), net.num_params, self.task.binary_obs)
-        self.learner: Learner = DQNLearner(settings, self.info.obs_dim, self.info.view_dim, self.info.num_actions,
-                                           self.task.binary_obs, run.device)
+        self.learner: Learner = DQNLearner(settings, net, self.task.binary_obs, run.device)
         self.parts: list[Part] = []
         start = 0
         for cfg, run_dir in zip(cfgs, run_dirs):
@@ -352,12 +349,7 @@ class Trainer:
                               f"fresh run in another --out directory") from None
 
     def _load_arrays(self, part: Part, state: dict[str, Any]) -> None:
-        """The body of `_load_part`."""
-        k = part.cfg.run.seeds
-        for name, shape in (("visits", part.visits.shape), ("train_reward", (k,)), ("autoreset", (k,)),
-                            ("obs", None if state["obs"] is None else (k, self.info.obs_dim))):
-            if shape is not None and np.shape(state[name]) != shape:
-                raise ValueError(f"{name} has shape {np.shape(state[name])}, this run needs {shape}")
+        """The body of `_load_part`, on a state `check_state` has accepted (shapes, dtypes, ranges)."""
         self.learner.load_state_dict(state, part.rows)
         if state["env"] is not None:
             part.env.reset(seed=part.seeds)  # a seeded reset, then every world is overwritten with its saved state

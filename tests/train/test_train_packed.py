@@ -8,6 +8,7 @@ import torch
 from run_metrics import metrics_without_timing
 
 from train.agent.learner import DQNLearner, Learner, RowSettings
+from train.agent.network import QNetwork
 from train.config import TrainConfig
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import Pack, execute, execute_pack
@@ -91,8 +92,8 @@ def test_conditions_that_cannot_share_a_trainer_are_refused_and_kept_apart():
 
 def test_the_double_dqn_learner_is_a_learner():
     row = RowSettings(0, TINY.dqn, TINY.rnd)
-    learner = DQNLearner([row, RowSettings(1, TINY.dqn, TINY.rnd)], obs_dim=130, view_dim=125, num_actions=7,
-                         binary_obs=True)
+    net = QNetwork.from_config(view_dim=125, obs_dim=130, num_actions=7, dqn=TINY.dqn)
+    learner = DQNLearner([row, RowSettings(1, TINY.dqn, TINY.rnd)], net, binary_obs=True)
     assert isinstance(learner, Learner) and learner.num_agents == 2 and learner.device.type == "cpu"
     assert learner.steps_to_collect(0) == 300 and learner.steps_to_collect(300) == 100
 

@@ -94,18 +94,21 @@ class DQNLearner:
     trained beside others follows the trajectory it follows alone, up to float rounding.
     """
 
-    def __init__(self, rows: Sequence[RowSettings], obs_dim: int, view_dim: int, num_actions: int,
-                 binary_obs: bool, device: str | torch.device = "cpu") -> None:
+    def __init__(self, rows: Sequence[RowSettings], net: QNetwork, binary_obs: bool,
+                 device: str | torch.device = "cpu") -> None:
+        """``net``: the Q-network of every row (`QNetwork.from_config`); ``binary_obs``: observations are 0/1
+        (the replay bit-packs them).
+        """
         self.rows = list(rows)
         self.cfg = cfg = self.rows[0].dqn  # the settings every row shares (`train.packing` checks them)
-        self.num_actions = num_actions
+        self.num_actions = net.num_actions
+        obs_dim = net.view_dim + net.inventory_dim
         self.device = torch.device(device)
         streams = [seed_streams(r.seed) for r in self.rows]
         self.rngs = {name: [s[name] for s in streams] for name in STREAMS}
-        net = QNetwork(view_dim, obs_dim - view_dim, num_actions, cfg.view_layers, cfg.inventory_layers,
-                       cfg.head_layers)
         self.agent = DoubleDQN(net, cfg, self.rngs["init"], [r.lr for r in self.rows], self.device)
         self.rnd_rows = np.flatnonzero([r.rnd.rnd for r in self.rows])
+        self._rnd_index = torch.from_numpy(self.rnd_rows).to(self.device)  # the rows RND's bonus goes to
         self.rnd = (RND(obs_dim, self.rows[self.rnd_rows[0]].rnd, [self.rngs["rnd"][k] for k in self.rnd_rows],
                         self.device) if self.rnd_rows.size else None)
         self.replay = Replay(self.num_agents, cfg.buffer_size, obs_dim, binary_obs, cfg.float_obs_dtype)
@@ -176,7 +179,7 @@ class DQNLearner:
                 obs_pairs, actions = batch.obs_pairs.to(self.device), batch.actions.to(self.device)
                 rewards, terminated = batch.rewards.to(self.device), batch.terminated.to(self.device)
                 if self.rnd is not None:
-                    rnd = torch.from_numpy(self.rnd_rows).to(self.device)
+                    rnd = self._rnd_index
                     rewards = rewards.index_add(0, rnd, self.rnd.bonus(obs_pairs[rnd, batch_size:]))
                 self.loss_sum += self.agent.update(obs_pairs, actions, rewards, terminated)
                 self.loss_count += 1

@@ -210,6 +210,14 @@ class QNetwork:
         self._tables: dict[tuple, Tensor] = {}
         self._grads: dict[tuple, tuple[Tensor, tuple]] = {}  # see `grad_buffer`
 
+    @classmethod
+    def from_config(cls, view_dim: int, obs_dim: int, num_actions: int, dqn) -> QNetwork:
+        """The network a `train.config.DQNConfig` ``dqn`` describes, for observations of ``obs_dim`` entries
+        whose first ``view_dim`` are the view.
+        """
+        return cls(view_dim, obs_dim - view_dim, num_actions, dqn.view_layers, dqn.inventory_layers,
+                   dqn.head_layers, dqn.inventory_repeat)
+
     def with_inventory_repeat(self, repeat: int) -> QNetwork:
         """This network with the inventory repeated ``repeat`` times (itself if it already is)."""
         if repeat == self.inventory_repeat:
