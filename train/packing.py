@@ -2,8 +2,8 @@
 
 Conditions of one task pack into one trainer when they differ only in what a learner row may hold on its
 own (`PER_ROW`): the environment's knobs, the learning rate, the exploration schedule, the RND flag and the
-seeds. Everything else (network, batch, replay size, schedule, evaluation, step budget) is shared, because
-the packed gradient step and the lockstep loop run it once for all rows.
+seeds. Everything else (network, batch, replay size, schedule, evaluation, step budget, RND's own settings)
+is shared, because the packed gradient step and the lockstep loop run it once for all rows.
 """
 
 from __future__ import annotations
@@ -22,51 +22,33 @@ PER_ROW = {"env": ("dynamism", "shaping", "reset_free", "reward", "horizon", "en
 """Settings that may differ between the conditions of one pack, by config section."""
 
 
-def shared_settings(cfg: TrainConfig) -> dict:
-    """The settings every condition of a pack must share (RND's own settings only where RND is on)."""
+def shared_settings(cfg: TrainConfig) -> dict[str, object]:
+    """The settings every condition of a pack must share, as ``section.name`` -> value."""
     data = cfg.to_dict()
-    for section, names in PER_ROW.items():
-        for name in names:
-            data[section].pop(name)
-    if not cfg.rnd.rnd:
-        data.pop("rnd")
-    return data
+    return {f"{section}.{name}": value for section, fields in data.items() for name, value in fields.items()
+            if name not in PER_ROW.get(section, ())}
 
 
 def pack_key(cfg: TrainConfig) -> str:
-    """Conditions with equal keys can share one trainer (the RND settings are compared apart)."""
-    data = shared_settings(cfg)
-    data.pop("rnd", None)
-    return json.dumps(data, sort_keys=True)
+    """Conditions with equal keys can share one trainer."""
+    return json.dumps(shared_settings(cfg), sort_keys=True)
 
 
 def check_packable(cfgs: Sequence[TrainConfig]) -> None:
     """Raise ValueError naming the first shared setting on which two conditions of a pack differ."""
-    first = _flat(shared_settings(cfgs[0]))
-    rnd_first = None
-    for cfg in cfgs:
-        flat = _flat(shared_settings(cfg))
-        rnd = {k: v for k, v in flat.items() if k.startswith("rnd.")}
-        rnd_first = rnd_first or rnd or None
-        if rnd and rnd != rnd_first:
-            raise ValueError("packed conditions with RND must share its settings; run them separately")
-        for key in sorted(set(first) | set(flat)):
-            if not key.startswith("rnd.") and first.get(key) != flat.get(key):
-                raise ValueError(f"cannot pack these conditions: they differ in {key} ({first.get(key)!r} vs "
-                                 f"{flat.get(key)!r}); run them separately (without --pack)")
-
-
-def _flat(data: dict) -> dict:
-    """section.name -> value."""
-    return {f"{s}.{k}": v for s, fields in data.items() for k, v in fields.items()}
+    first = shared_settings(cfgs[0])
+    for cfg in cfgs[1:]:
+        for key, value in shared_settings(cfg).items():
+            if first[key] != value:
+                raise ValueError(f"cannot pack these conditions: they differ in {key} ({first[key]!r} vs "
+                                 f"{value!r}); run them separately (without --pack)")
 
 
 def group_packable(cfgs: Sequence[TrainConfig]) -> list[list[int]]:
-    """Indices of ``cfgs`` grouped into packs (first-appearance order; RND settings split packs too)."""
+    """Indices of ``cfgs`` grouped into packs (first-appearance order)."""
     groups: dict[str, list[int]] = {}
     for i, cfg in enumerate(cfgs):
-        rnd = json.dumps(shared_settings(cfg).get("rnd"), sort_keys=True)
-        groups.setdefault(pack_key(cfg) + rnd if cfg.rnd.rnd else pack_key(cfg), []).append(i)
+        groups.setdefault(pack_key(cfg), []).append(i)
     return list(groups.values())
 
 

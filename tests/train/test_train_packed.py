@@ -88,6 +88,10 @@ def test_conditions_that_cannot_share_a_trainer_are_refused_and_kept_apart():
         check_packable([TINY, TINY.replace(batch_size=32)])
     cfgs = [TINY, TINY.replace(dynamism=0.5, lr=1e-3), TINY.replace(batch_size=32), TINY.replace(task="hunting")]
     assert group_packable(cfgs) == [[0, 1], [2], [3]]
+    with_rnd = [TINY, TINY.replace(rnd=True), TINY.replace(rnd=True, rnd_weight=0.5)]
+    assert group_packable(with_rnd) == [[0, 1], [2]]  # the RND flag is a row's own, its settings are shared
+    with pytest.raises(ValueError, match="differ in rnd.rnd_weight"):
+        check_packable(with_rnd)
 
 
 def test_the_double_dqn_learner_is_a_learner():
