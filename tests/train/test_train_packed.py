@@ -134,3 +134,12 @@ def test_a_condition_that_cannot_open_does_not_stop_its_pack(tmp_path):
         results["static-reset-free"].error
     assert results["dynamic-reset-free"].status == "done"
     assert (kept / "metrics.csv").read_text() == "step,seed\n"
+
+
+def test_the_learners_epsilon_is_each_rows_config_epsilon():
+    dqns = [TINY.dqn, TINY.replace(eps_start=0.6, eps_end=0.05, eps_decay_steps=1234).dqn,
+            TINY.replace(eps_decay_steps=0).dqn]
+    net = QNetwork.from_config(view_dim=125, obs_dim=130, num_actions=7, dqn=TINY.dqn)
+    learner = DQNLearner([RowSettings(i, d, TINY.rnd) for i, d in enumerate(dqns)], net, binary_obs=True)
+    for step in (0, 1, 617, 1234, 89_999, 90_000, 10**7):
+        assert np.array_equal(learner.epsilon(step), [d.epsilon(step) for d in dqns])

@@ -115,6 +115,8 @@ class DQNLearner:
         self.loss_sum = torch.zeros(self.num_agents, device=self.device)
         self.loss_count = 0
         self._draws = np.zeros((0, self.num_agents, 2))
+        self._eps = {name: np.array([getattr(r.dqn, name) for r in self.rows], dtype=float)
+                     for name in ("eps_start", "eps_end", "eps_decay_steps")}
 
     @property
     def num_agents(self) -> int:
@@ -133,8 +135,13 @@ class DQNLearner:
         self._next_draw = 0
 
     def epsilon(self, step: int) -> np.ndarray:
-        """Each row's exploration epsilon at lifetime step ``step`` (K,)."""
-        return np.array([r.dqn.epsilon(step) for r in self.rows])
+        """Each row's exploration epsilon at lifetime step ``step`` (K,): `DQNConfig.epsilon` of every row at
+        once, the same arithmetic.
+        """
+        start, end, decay = self._eps["eps_start"], self._eps["eps_end"], self._eps["eps_decay_steps"]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            frac = np.where(decay > 0, np.minimum(max(step, 0) / decay, 1.0), 1.0)
+        return start + (end - start) * frac
 
     def act(self, obs: np.ndarray, step: int) -> np.ndarray:
         """Epsilon-greedy actions (K,), from the noise drawn by `begin_collect`."""
