@@ -143,3 +143,16 @@ def test_the_learners_epsilon_is_each_rows_config_epsilon():
     learner = DQNLearner([RowSettings(i, d, TINY.rnd) for i, d in enumerate(dqns)], net, binary_obs=True)
     for step in (0, 1, 617, 1234, 89_999, 90_000, 10**7):
         assert np.array_equal(learner.epsilon(step), [d.epsilon(step) for d in dqns])
+
+
+def test_a_run_interrupted_inside_an_evaluation_is_reported_interrupted(tmp_path, monkeypatch):
+    from train.experiments import jobs as jobs_module
+    from train.runlog import Interrupted
+
+    def interrupted(*args):
+        raise Interrupted("a signal during a long evaluation")
+
+    monkeypatch.setattr(jobs_module, "_train", interrupted)  # Interrupted is a KeyboardInterrupt, not an Exception
+    jobs = plan(get_experiment("headline-waypoint"), "smoke", tmp_path)
+    assert execute(jobs[0]).status == "interrupted"
+    assert [r.status for r in execute_pack(Pack(tuple(jobs)))] == ["interrupted"] * 4

@@ -166,11 +166,11 @@ def execute(job: Job) -> JobResult:
             return JobResult(job.name, "skipped")
         finished = _run_measurement(job) if job.is_measurement else _run_training(job)
         return JobResult(job.name, "done" if finished else "interrupted", time.perf_counter() - began)
-    except Exception as err:  # reported to the caller, which carries on with the other jobs
+    except (Exception, Interrupted) as err:  # reported to the caller, which carries on with the other jobs
         return _error_result(job, err, began)
 
 
-def _error_result(job: Job, err: Exception, began: float) -> JobResult:
+def _error_result(job: Job, err: BaseException, began: float) -> JobResult:
     """What an exception means for a job: interrupted (the last checkpoint stands), kept (results without a
     checkpoint), or failed (one line for bad input or a full disk, the traceback for a bug).
     """
@@ -268,7 +268,7 @@ def execute_pack(pack: Pack) -> list[JobResult]:
                 finished = _train(members, opened)
                 results += [JobResult(j.name, "done" if finished else "interrupted", time.perf_counter() - began)
                             for j in members]
-        except Exception as err:
+        except (Exception, Interrupted) as err:
             for run, _ in opened:
                 run.unlock()
             results += [_error_result(j, err, began) for j in members]
