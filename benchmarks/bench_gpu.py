@@ -42,22 +42,44 @@ def parity(device: str) -> float:
     return float((trained[0] - trained[1]).abs().max() / trained[0].abs().max())
 
 
-def rate(k: int, device: str, epochs: int) -> tuple[float, float]:
-    """(agent-steps per second, seconds of the first, untimed epoch) of K seeds on ``device``."""
+def rate(k: int, device: str, epochs: int) -> tuple[float, float, float]:
+    """(agent-steps per second, seconds of the first, untimed epoch, share of the time spent collecting) of
+    K seeds on ``device``.
+    """
     trainer = Trainer(BASE.replace(seeds=k, device=device))
     began = time.perf_counter()
     trainer.train_epoch()  # the warm-up and one epoch: allocation, first kernels
     first = time.perf_counter() - began
     _sync(device)
-    began = time.perf_counter()
+    collecting = learning = 0.0
     steps = trainer.step
     for _ in range(epochs):
-        trainer.train_epoch()
-    _sync(device)
-    seconds = time.perf_counter() - began
+        began = time.perf_counter()
+        trainer.collect(trainer.learner.steps_to_collect(trainer.step))
+        _sync(device)
+        middle = time.perf_counter()
+        trainer.learn()
+        _sync(device)
+        collecting, learning = collecting + middle - began, learning + time.perf_counter() - middle
     done = (trainer.step - steps) * k
     trainer.close()
-    return done / seconds, first
+    return done / (collecting + learning), first, collecting / (collecting + learning)
+
+
+def profile(k: int, device: str, rows: int = 25) -> None:
+    """Print torch's profile of one epoch's updates at K seeds on ``device`` (the heaviest ops first)."""
+    trainer = Trainer(BASE.replace(seeds=k, device=device))
+    trainer.train_epoch()
+    trainer.collect(trainer.learner.steps_to_collect(trainer.step))
+    activities = [torch.profiler.ProfilerActivity.CPU]
+    if device.startswith("cuda"):
+        activities.append(torch.profiler.ProfilerActivity.CUDA)
+    with torch.profiler.profile(activities=activities) as prof:
+        trainer.learn()
+        _sync(device)
+    key = "self_cuda_time_total" if device.startswith("cuda") else "self_cpu_time_total"
+    print(prof.key_averages().table(sort_by=key, row_limit=rows))
+    trainer.close()
 
 
 def _sync(device: str) -> None:
@@ -70,7 +92,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--ks", type=int, nargs="+", default=[10, 40, 330], help="seeds trained together")
     parser.add_argument("--epochs", type=int, default=3, help="timed epochs of 500 steps per K and device")
+    parser.add_argument("--profile", type=int, metavar="K", help="only print a profile of one epoch's updates "
+                        "at K seeds (on CUDA if there is one)")
     args = parser.parse_args()
+    if args.profile:
+        profile(args.profile, "cuda" if torch.cuda.is_available() else "cpu")
+        return
     devices = ["cpu"]
     if torch.cuda.is_available():
         torch.backends.cuda.matmul.allow_tf32 = False
@@ -81,12 +108,13 @@ def main() -> None:
         devices.append("cuda")
     else:
         print(f"no CUDA device here (torch {torch.__version__}): timing the CPU trainer only")
-    print(f"{'K':>5s} " + " ".join(f"{d + ' agent-steps/s':>22s} {d + ' first epoch s':>18s}" for d in devices))
+    print(f"{'K':>5s} " + " ".join(f"{d + ' agent-steps/s':>22s} {d + ' first epoch s':>18s} {'collecting':>10s}"
+                                    for d in devices))
     for k in args.ks:
         cells = []
         for device in devices:
-            steps_per_s, first = rate(k, device, args.epochs)
-            cells.append(f"{steps_per_s:>22,.0f} {first:>18.1f}")
+            steps_per_s, first, collecting = rate(k, device, args.epochs)
+            cells.append(f"{steps_per_s:>22,.0f} {first:>18.1f} {collecting:>10.0%}")
         print(f"{k:>5d} " + " ".join(cells), flush=True)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     gpu = f", GPU peak {torch.cuda.max_memory_allocated() / 2**20:.0f} MiB" if "cuda" in devices else ""
