@@ -191,13 +191,15 @@ def _gap_conditions() -> tuple[Condition, ...]:
     """Issue 18's arms: the waypoint arms of the settings study (episodic H 100, non-episodic; lr 3e-4), each
     with one more setting of the released code changed.
 
-    The baselines are the settings study's ``ep-h100-waypoint`` and ``rf-waypoint``. Timeouts as terminals
-    only exist episodically (a non-episodic world is never cut by a time limit).
+    The baselines are the settings study's ``ep-h100-waypoint`` and ``rf-waypoint`` (and ``rf-lr3e-4`` for
+    the sparse arm). Timeouts as terminals only exist episodically (a non-episodic world is never cut by a
+    time limit).
     """
     p = DYNAMIC_P["salad"]
     ep = {"dynamism": p, "reset_free": False, "lr": SETTINGS_LR, "horizon": 100, "reward": "waypoint"}
     rf = {"dynamism": p, "reset_free": True, "lr": SETTINGS_LR, "reward": "waypoint"}
     one = {"env_kwargs": {"initial_count": 1}}
+    inv8 = {"inventory_repeat": 8}
     return (
         Condition("ep-init1", "episodic H 100, waypoint, 1 of each ingredient (released sweep's 1/1)", {**ep, **one}),
         Condition("ep-lr1e-4", "episodic H 100, waypoint, lr 1e-4", {**ep, "lr": 1e-4}),
@@ -205,6 +207,10 @@ def _gap_conditions() -> tuple[Condition, ...]:
                   {**ep, "timeouts_terminal": True}),
         Condition("rf-init1", "non-episodic, waypoint, 1 of each ingredient (released sweep's 1/1)", {**rf, **one}),
         Condition("rf-lr1e-4", "non-episodic, waypoint, lr 1e-4", {**rf, "lr": 1e-4}),
+        Condition("ep-inv8", "episodic H 100, waypoint, inventory fed 8 times (released script)", {**ep, **inv8}),
+        Condition("rf-inv8", "non-episodic, waypoint, inventory fed 8 times (released script)", {**rf, **inv8}),
+        Condition("rf-sparse-inv8", "non-episodic, sparse reward, inventory fed 8 times (released script)",
+                  {**rf, "reward": "sparse", **inv8}),
     )
 
 
@@ -239,7 +245,8 @@ def _salad_experiments() -> list[Experiment]:
             "salad-gap", "Fig. 4 (salad), the rest of the gap", "Why learned salad seeds plateau below the paper",
             "Issue 18's arms around the settings study's waypoint arms (dynamic salad p = 0.1, lr 3e-4; baselines "
             "'ep-h100-waypoint' and 'rf-waypoint' of 'settings'): one ingredient of each kind in training (the "
-            "released script also sweeps 1/1), lr 1e-4 (no seed diverged at it), and, episodic only, timeouts "
+            "released script also sweeps 1/1), lr 1e-4 (no seed diverged at it), the inventory fed 8 times (the "
+            "released script's np.repeat; also on the sparse non-episodic arm) and, episodic only, timeouts "
             "stored as terminals (the original's rule). Its paper budget is the study's: 10 seeds x 500 000 "
             "steps per arm.",
             {"salad": _gap_conditions()}, {"salad": 500_000}, 10,
