@@ -1,10 +1,11 @@
 """The trainer on a GPU: CPU/CUDA parity first, then training speed at K seeds in one process, CPU vs CUDA.
 
-    python benchmarks/bench_gpu.py                      # parity, then K = 10, 40, 330 on cpu and cuda
+    python benchmarks/bench_gpu.py                      # parity, then K = 10, 40, 330: cpu, cuda eager, graphs
     python benchmarks/bench_gpu.py --ks 10 40 --epochs 4
 
-Parity: the same seeds trained one epoch on the CPU and on the GPU (TF32 off) must give online weights
-within 1e-5 (relative to the largest weight). Speed: aggregate agent-steps per second (K seeds x environment
+Parity: the same seeds trained two epochs on the CPU and on the GPU (TF32 off) must give online weights
+within 1e-5 (relative to the largest weight), and the GPU with each gradient step replayed as a CUDA graph
+exactly the weights of eager kernels. Speed: aggregate agent-steps per second (K seeds x environment
 steps, each step with its gradient step) of the salad trainer, timed over whole epochs after one untimed
 epoch, the CPU with one torch thread. Without CUDA it says so and times the CPU only. Absolute rates move
 between runs and machines; compare the CPU and CUDA columns of one run.
@@ -30,23 +31,33 @@ BASE = TrainConfig().replace(task="salad", dynamism=0.1, reset_free=True, lr=3e-
 """Salad, the experiments' settings; a smaller replay so K = 330 fits any host."""
 
 
-def parity(device: str) -> float:
-    """Largest |CPU - device| online weight after one epoch, relative to the largest weight."""
+MODES = {"cpu": {"device": "cpu"}, "cuda eager": {"device": "cuda", "cuda_graphs": False},
+         "cuda graphs": {"device": "cuda", "cuda_graphs": True}}
+"""The trainers timed: the CPU, and a GPU with eager kernels and with each gradient step a CUDA graph."""
+
+
+def parity() -> tuple[float, float]:
+    """Largest |CPU - CUDA| online weight after two epochs, relative to the largest weight, and the largest
+    |eager - graphs| difference (CUDA graphs replay the eager kernels, so 0).
+    """
     cfg = BASE.replace(seeds=4, updates_per_epoch=50)
     trained = []
-    for where in ("cpu", device):
-        trainer = Trainer(cfg.replace(device=where))
+    for mode in MODES.values():
+        trainer = Trainer(cfg.replace(**mode))
+        trainer.train_epoch()
         trainer.train_epoch()
         trained.append(trainer.agent.online.detach().cpu())
         trainer.close()
-    return float((trained[0] - trained[1]).abs().max() / trained[0].abs().max())
+    cpu, eager, graphs = trained
+    return float((cpu - eager).abs().max() / cpu.abs().max()), float((eager - graphs).abs().max())
 
 
-def rate(k: int, device: str, epochs: int) -> tuple[float, float, float]:
-    """(agent-steps per second, seconds of the first, untimed epoch, share of the time spent collecting) of
-    K seeds on ``device``.
+def rate(k: int, mode: str, epochs: int) -> tuple[float, float, float]:
+    """(agent-steps per second, seconds of the first, untimed epoch (warm-up, first kernels, graph capture),
+    share of the time spent collecting) of K seeds trained as `MODES` ``mode`` says.
     """
-    trainer = Trainer(BASE.replace(seeds=k, device=device))
+    device = MODES[mode]["device"]
+    trainer = Trainer(BASE.replace(seeds=k, **MODES[mode]))
     began = time.perf_counter()
     trainer.train_epoch()  # the warm-up and one epoch: allocation, first kernels
     first = time.perf_counter() - began
@@ -98,27 +109,28 @@ def main() -> None:
     if args.profile:
         profile(args.profile, "cuda" if torch.cuda.is_available() else "cpu")
         return
-    devices = ["cpu"]
+    modes = ["cpu"]
     if torch.cuda.is_available():
         torch.backends.cuda.matmul.allow_tf32 = False
         torch.backends.cudnn.allow_tf32 = False
-        error = parity("cuda")
-        print(f"parity CPU vs CUDA after one epoch: max relative weight difference {error:.2e} "
-              f"({'ok' if error <= 1e-5 else 'FAILED: above 1e-5'})")
-        devices.append("cuda")
+        error, graphs = parity()
+        print(f"parity after two epochs: CPU vs CUDA max relative weight difference {error:.2e} "
+              f"({'ok' if error <= 1e-5 else 'FAILED: above 1e-5'}); eager vs CUDA graphs {graphs:.2e} "
+              f"({'ok' if graphs == 0 else 'FAILED: not identical'})")
+        modes += ["cuda eager", "cuda graphs"]
     else:
         print(f"no CUDA device here (torch {torch.__version__}): timing the CPU trainer only")
-    print(f"{'K':>5s} " + " ".join(f"{d + ' agent-steps/s':>22s} {d + ' first epoch s':>18s} {'collecting':>10s}"
-                                    for d in devices))
+    print("agent-steps/s, seconds of the first (untimed) epoch, share of the time collecting; per K:")
+    print(f"{'K':>5s} " + " ".join(f"{m:>30s}" for m in modes))
     for k in args.ks:
         cells = []
-        for device in devices:
-            steps_per_s, first, collecting = rate(k, device, args.epochs)
-            cells.append(f"{steps_per_s:>22,.0f} {first:>18.1f} {collecting:>10.0%}")
+        for mode in modes:
+            steps_per_s, first, collecting = rate(k, mode, args.epochs)
+            cells.append(f"{steps_per_s:>14,.0f} {first:>7.1f} s {collecting:>5.0%}")
         print(f"{k:>5d} " + " ".join(cells), flush=True)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    gpu = f", GPU peak {torch.cuda.max_memory_allocated() / 2**20:.0f} MiB" if "cuda" in devices else ""
-    print(f"peak RSS {peak:.0f} MiB{gpu}; CUDA graphs are not used yet (eager kernels)")
+    gpu = f", GPU peak {torch.cuda.max_memory_allocated() / 2**20:.0f} MiB" if len(modes) > 1 else ""
+    print(f"peak RSS {peak:.0f} MiB{gpu}")
 
 
 if __name__ == "__main__":

@@ -249,6 +249,9 @@ class RunConfig:
     """Threads stepping the grid worlds (same results for any count; pays only with idle cores, e.g. a GPU host)."""
     device: str = field(default="cpu", metadata=RUNTIME)
     """Where the networks, the optimiser and the updates run: cpu, cuda or cuda:N (worlds stay on the CPU)."""
+    cuda_graphs: bool = field(default=True, metadata=RUNTIME)
+    """On a GPU, capture one gradient step as a CUDA graph and replay it for the others (the same numbers as
+    eager kernels, with far less launch overhead); no effect on the CPU."""
 
     def __post_init__(self) -> None:
         check_int("seeds", self.seeds)

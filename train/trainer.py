@@ -97,7 +97,7 @@ class Trainer:
         settings = [RowSettings(s, c.dqn, c.rnd) for c in cfgs for s in c.run.seed_list]
         net = QNetwork.from_config(self.info.view_dim, self.info.obs_dim, self.info.num_actions, cfgs[0].dqn)
         check_memory(cfgs, self.info.obs_dim, math.prod(self.info.visit_shape), net.num_params, self.task.binary_obs)
-        self.learner: Learner = DQNLearner(settings, net, self.task.binary_obs, run.device)
+        self.learner: Learner = DQNLearner(settings, net, self.task.binary_obs, run.device, run.cuda_graphs)
         self.parts: list[Part] = []
         start = 0
         for cfg, run_dir in zip(cfgs, run_dirs):

@@ -19,10 +19,13 @@ import torch
 
 from train.agent.dqn import DoubleDQN
 from train.agent.network import QNetwork
-from train.agent.replay import Replay
+from train.agent.replay import Batch, Replay
 from train.agent.rnd import RND
+from train.agent.staging import Stager
 from train.config import DQNConfig, RNDConfig
 
+GRAPH_WARMUP = 3
+"""Gradient steps run eagerly on a GPU before one is captured as a CUDA graph (the first kernels' set-up)."""
 STREAMS = ("init", "explore", "sample", "rnd")
 """The random streams of each seed, spawned from its SeedSequence in this order."""
 
@@ -95,9 +98,11 @@ class DQNLearner:
     """
 
     def __init__(self, rows: Sequence[RowSettings], net: QNetwork, binary_obs: bool,
-                 device: str | torch.device = "cpu") -> None:
+                 device: str | torch.device = "cpu", graphs: bool = True, static_batches: bool = False) -> None:
         """``net``: the Q-network of every row (`QNetwork.from_config`); ``binary_obs``: observations are 0/1
-        (the replay bit-packs them).
+        (the replay bit-packs them); ``graphs``: on a GPU, capture a gradient step as a CUDA graph and
+        replay it; ``static_batches``: read minibatches as a GPU does, also on the CPU (for tests; see
+        `train.agent.staging`).
         """
         self.rows = list(rows)
         self.cfg = cfg = self.rows[0].dqn  # the settings every row shares (`train.packing` checks them)
@@ -114,6 +119,11 @@ class DQNLearner:
         self.replay = Replay(self.num_agents, cfg.buffer_size, obs_dim, binary_obs, cfg.float_obs_dtype)
         self.loss_sum = torch.zeros(self.num_agents, device=self.device)
         self.loss_count = 0
+        self._stager = Stager(self.replay, cfg.batch_size, cfg.updates_per_epoch, self.device, static_batches)
+        self.graphs = graphs and self.device.type == "cuda"
+        """Replay each gradient step from one captured CUDA graph (on a GPU only)."""
+        self._graph: torch.cuda.CUDAGraph | None = None
+        self._eager_steps = 0
         self._draws = np.zeros((0, self.num_agents, 2))
         self._eps = {name: np.array([getattr(r.dqn, name) for r in self.rows], dtype=float)
                      for name in ("eps_start", "eps_end", "eps_decay_steps")}
@@ -177,19 +187,42 @@ class DQNLearner:
             self.replay.add(ended, self.replay.encode(next_obs))
 
     def learn(self) -> None:
-        """The epoch's gradient steps: every row on its own minibatch each time."""
-        n, batch_size = self.cfg.updates_per_epoch, self.cfg.batch_size
-        slots = self.replay.sample_indices(self.rngs["sample"], n, batch_size)
+        """The epoch's gradient steps: every row on its own minibatch each time, staged a chunk at a time."""
+        n = self.cfg.updates_per_epoch
+        slots = self.replay.sample_indices(self.rngs["sample"], n, self.cfg.batch_size)
+        stager = self._stager
         with torch.no_grad():
-            for i in range(n):
-                batch = self.replay.batch(slots[:, i])
-                obs_pairs, actions = batch.obs_pairs.to(self.device), batch.actions.to(self.device)
-                rewards, terminated = batch.rewards.to(self.device), batch.terminated.to(self.device)
-                if self.rnd is not None:
-                    rnd = self._rnd_index
-                    rewards = rewards.index_add(0, rnd, self.rnd.bonus(obs_pairs[rnd, batch_size:]))
-                self.loss_sum += self.agent.update(obs_pairs, actions, rewards, terminated)
-                self.loss_count += 1
+            for first in range(0, n, stager.chunk):
+                for i in range(stager.load(slots[:, first:first + stager.chunk])):
+                    self._gradient_step(i)
+
+    def _gradient_step(self, i: int) -> None:
+        """Gradient step ``i`` of the staged chunk: replayed from the CUDA graph once there is one, else run
+        (and, after `GRAPH_WARMUP` steps on a GPU with graphs on, captured).
+        """
+        stager = self._stager
+        if stager.static:
+            stager.select(i)
+        if self._graph is not None:
+            self._graph.replay()
+        else:
+            self._update(stager.batch(i))
+            self._eager_steps += 1
+            if self.graphs and self._eager_steps == GRAPH_WARMUP:
+                self._graph = torch.cuda.CUDAGraph()
+                with torch.cuda.graph(self._graph):  # records the kernels without running them
+                    self._update(stager.batch(i))
+        self.loss_count += 1
+
+    def _update(self, batch: Batch) -> None:
+        """One gradient step of every row on ``batch`` (with the RND bonus on its rows)."""
+        batch_size = batch.actions.shape[1]
+        obs_pairs, actions = batch.obs_pairs.to(self.device), batch.actions.to(self.device)
+        rewards, terminated = batch.rewards.to(self.device), batch.terminated.to(self.device)
+        if self.rnd is not None:
+            rnd = self._rnd_index
+            rewards = rewards.index_add(0, rnd, self.rnd.bonus(obs_pairs[rnd, batch_size:]))
+        self.loss_sum += self.agent.update(obs_pairs, actions, rewards, terminated)
 
     def take_losses(self) -> np.ndarray:
         """Mean TD loss per row since the last call (NaN before any update); resets the sums."""

@@ -134,17 +134,29 @@ class Replay:
             bad = (self.flags[k, slots] & STARTS) == 0
         return slots
 
-    def batch(self, slots: np.ndarray) -> Batch:
-        """The transitions starting at ``slots`` (K, B)."""
+    def stage(self, slots: np.ndarray) -> dict[str, np.ndarray]:
+        """The stored transitions starting at ``slots`` (K, m, B), still packed: ``obs`` (K, m, 2B, width), the
+        B observations of each step then their next observations, and ``action``, ``reward``, ``flags``
+        (K, m, B). One gather for m gradient steps (`train.agent.staging`).
+        """
         # np.take on flat indices is several times faster than two-axis fancy indexing
-        start = slots + self._row_offsets
-        pairs = np.concatenate((start, start - slots + (slots + 1) % self.capacity), axis=1)
-        obs = np.take(self.obs.reshape(-1, self.obs.shape[2]), pairs, axis=0)
+        start = slots + self._row_offsets[:, :, None]
+        pairs = np.concatenate((start, start - slots + (slots + 1) % self.capacity), axis=2)
+        return {"obs": np.take(self.obs.reshape(-1, self.obs.shape[2]), pairs, axis=0),
+                "action": np.take(self.action, start), "reward": np.take(self.reward, start),
+                "flags": np.take(self.flags, start)}
+
+    def batch(self, slots: np.ndarray) -> Batch:
+        """The transitions starting at ``slots`` (K, B), unpacked."""
+        return self.unpack({name: array[:, 0] for name, array in self.stage(slots[:, None]).items()})
+
+    def unpack(self, step: dict[str, np.ndarray]) -> Batch:
+        """One gradient step's staged transitions (``obs`` (K, 2B, width), the rest (K, B)) as a `Batch`."""
         return Batch(
-            obs_pairs=self.decode(obs),
-            actions=torch.from_numpy(np.take(self.action, start).astype(np.int64)),
-            rewards=torch.from_numpy(np.take(self.reward, start)),
-            terminated=torch.from_numpy((np.take(self.flags, start) & TERMINATED).astype(np.float32)),
+            obs_pairs=self.decode(step["obs"]),
+            actions=torch.from_numpy(step["action"].astype(np.int64)),
+            rewards=torch.from_numpy(np.ascontiguousarray(step["reward"])),
+            terminated=torch.from_numpy((step["flags"] & TERMINATED).astype(np.float32)),
         )
 
     def state_dict(self, rows: slice = slice(None)) -> dict[str, Any]:

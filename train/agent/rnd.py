@@ -39,7 +39,7 @@ class RunningMoments:
         delta = batch_mean - self.mean
         self.mean += delta * (n / total)
         self.m2 += batch_m2 + delta.square() * (self.count * n / total)
-        self.count = total
+        self.count.copy_(total)  # in place, as every update here: a captured CUDA graph keeps its tensors
 
     @property
     def std(self) -> Tensor:
@@ -52,7 +52,8 @@ class RunningMoments:
 
     def load_state_dict(self, state: dict[str, Tensor]) -> None:
         """Restore a `state_dict`."""
-        self.count, self.mean, self.m2 = (state[k].to(self.count.device).clone() for k in ("count", "mean", "m2"))
+        for name in ("count", "mean", "m2"):
+            getattr(self, name).copy_(state[name])
 
 
 class RND:
