@@ -123,9 +123,9 @@ def resolve_run_dir(path: str | Path) -> Path:
     return run_dir
 
 
-def validation_success(run_dir: Path, step: int | None = None) -> dict[int, float]:
-    """Validation success of each seed index at evaluation ``step`` (default: the run's last evaluation);
-    empty if there is no such evaluation.
+def validation_success(run_dir: Path, step: int | None = None, column: str = "success") -> dict[int, float]:
+    """Validation success (or another metrics.csv ``column``) of each seed index at evaluation ``step``
+    (default: the run's last evaluation); empty if there is no such evaluation.
     """
     path = run_dir / "metrics.csv"
     rows = list(csv.DictReader(io.StringIO(read_text(path)))) if path.exists() or path.is_symlink() else []
@@ -134,7 +134,7 @@ def validation_success(run_dir: Path, step: int | None = None) -> dict[int, floa
     seeds = run_config(run_dir).run.seed_list
     try:
         step = max(int(r["step"]) for r in rows) if step is None else step
-        return {seeds.index(int(r["seed"])): float(r["success"]) for r in rows if int(r["step"]) == step}
+        return {seeds.index(int(r["seed"])): float(r[column]) for r in rows if int(r["step"]) == step}
     except (KeyError, TypeError, ValueError) as err:
         raise ValueError(f"{path} is not a metrics file of this run ({err}); restore it, or delete it to "
                          f"rebuild it from the checkpoint with 'ecorl train TASK --resume'") from None
@@ -276,6 +276,29 @@ def export_policy(run_dir: str | Path, out: str | Path, seed_index: int | None =
         success = validation_success(run_dir, int(state["step"]))
         seed_index = max(success, key=lambda k: (success[k], -k)) if success else 0
     return save_policy(_policy_of(run_dir, state, seed_index), out)
+
+
+RUN_POLICIES_DIR = "policies"
+"""Where a finished experiment run keeps its exported policies (``best.npz``, ``median.npz``)."""
+
+
+def export_run_policies(run_dir: str | Path, state: dict[str, Any] | None = None) -> dict[str, Path]:
+    """Write a run's best and median seed, by their last validation success (the return where the task has
+    no success), as ``RUN_DIR/policies/best.npz`` and ``median.npz`` (the upper median of an even count);
+    ``state`` is the run's checkpoint state if already in memory. Empty if the run has no evaluation yet.
+    """
+    run_dir, state = (Path(run_dir), state) if state is not None else _load_run(run_dir)
+    step = int(state["step"])
+    scores = validation_success(run_dir, step)
+    if scores and all(np.isnan(v) for v in scores.values()):
+        scores = validation_success(run_dir, step, "return")
+    if not scores:
+        return {}
+    ranked = sorted(scores, key=lambda k: (-np.nan_to_num(scores[k], nan=-np.inf), k))
+    picks = {"best": ranked[0], "median": ranked[(len(ranked) - 1) // 2]}
+    (run_dir / RUN_POLICIES_DIR).mkdir(exist_ok=True)
+    return {name: save_policy(_policy_of(run_dir, state, k), run_dir / RUN_POLICIES_DIR / f"{name}.npz")
+            for name, k in picks.items()}
 
 
 def shipped_policy(task: str) -> Path | None:

@@ -18,6 +18,7 @@ from typing import Any
 from train.config import TrainConfig
 from train.experiments import table1
 from train.fileio import atomic_text, is_temporary
+from train.policy import RUN_POLICIES_DIR
 from train.runlog import Interrupted
 from train.safeio import UnsafeFileError, load_json
 
@@ -29,7 +30,8 @@ UNSTARTED_FILES = ("config.json", "progress.json")
 """What a run stopped before its first checkpoint leaves (besides its lock and interrupted temporaries,
 `train.fileio.is_temporary`); cleared before it starts again. Anything else is a result, never deleted
 unless the job is restarted."""
-RESULT_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "tensorboard", "progress.json", DONE_FILE)
+RESULT_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "tensorboard", "progress.json",
+                RUN_POLICIES_DIR, DONE_FILE)
 """What ``--restart`` clears (with the checkpoint) before a condition starts again."""
 
 
@@ -208,6 +210,7 @@ def _train(jobs: list[Job], opened: list) -> bool:
     """Train ``jobs`` (one trainer; packed when several) from their opened run directories; write each done
     marker when the runs reach their budget. Returns False when a signal stopped them (with checkpoints).
     """
+    from train.policy import export_run_policies
     from train.runlog import PROGRESS_FILE, heartbeat_to
     from train.trainer import Trainer
 
@@ -222,7 +225,8 @@ def _train(jobs: list[Job], opened: list) -> bool:
         trainer.close()
     if trainer.epoch < trainer.cfg.num_epochs:
         return False  # stopped by a signal, with a checkpoint
-    for job, part in zip(jobs, trainer.parts):
+    for index, (job, part) in enumerate(zip(jobs, trainer.parts)):
+        export_run_policies(job.run_dir, trainer.state_dict(index))
         marker = {"total_steps": part.cfg.total_steps, "seeds": part.cfg.run.seeds,
                   "seconds": round(time.perf_counter() - began, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
         if len(jobs) > 1:

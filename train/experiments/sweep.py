@@ -4,6 +4,7 @@ Layout of a results directory::
 
     OUT/<experiment>/experiment.json          what was run (conditions, budget), read by the report
     OUT/<experiment>/<task>/<condition>/      one trainer run directory (train.rundir), all seeds
+        policies/best.npz, median.npz         its best and median seed by the last validation score
         done.json                             written atomically when the run has reached its budget
     OUT/measure/<task>/<measurement>/         table.csv, table.md, done.json (Table 1, no training)
 

@@ -14,6 +14,7 @@ from train import cli
 from train.policy import (
     POLICY_DIR,
     export_policy,
+    export_run_policies,
     load_policy,
     load_policy_file,
     policy_from_run,
@@ -75,6 +76,40 @@ def test_export_picks_the_best_seed_at_the_checkpoint(run_dir, tmp_path):
         writer.writerows(rows)
     policy = load_policy(export_policy(copy, tmp_path / "best.npz"))
     assert policy.seed == last_seed and policy.meta["validation_success"] == 0.9
+
+
+def _rewrite_last_evaluation(run_dir, column: str, values: dict[int, float]) -> None:
+    """Set ``column`` of the last evaluation's rows to ``values`` (by seed) and the success column to NaN
+    where the column is another.
+    """
+    rows = list(csv.DictReader((run_dir / "metrics.csv").open()))
+    last = max(int(r["step"]) for r in rows)
+    for r in rows:
+        if int(r["step"]) == last:
+            r[column] = str(values[int(r["seed"])])
+            if column != "success":
+                r["success"] = "nan"
+    with (run_dir / "metrics.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def test_a_finished_experiment_run_ships_its_best_and_median_seed(run_dir, tmp_path):
+    success = {int(r["seed"]): float(r["success"]) for r in csv.DictReader((run_dir / "metrics.csv").open())
+               if int(r["step"]) == policy_from_run(run_dir, 0).meta["step"]}
+    ranked = sorted(success, key=lambda seed: (-success[seed], seed))
+    for name, seed in (("best", ranked[0]), ("median", ranked[(len(ranked) - 1) // 2])):
+        shipped = load_policy(run_dir / "policies" / f"{name}.npz")  # written when the smoke run finished
+        assert shipped.seed == seed and shipped.meta["validation_success"] == success[seed]
+        assert torch.equal(shipped.params, policy_from_run(run_dir, shipped.meta["agent"]).params)
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    seeds = sorted(success)
+    _rewrite_last_evaluation(copy, "return", {seed: float(i % 3) for i, seed in enumerate(seeds)})
+    picked = {name: load_policy(path).seed for name, path in export_run_policies(copy).items()}
+    returns = sorted(seeds, key=lambda seed: (-(seeds.index(seed) % 3), seed))  # no success: by return
+    assert picked == {"best": returns[0], "median": returns[(len(returns) - 1) // 2]}
 
 
 def test_bad_policy_files_are_refused(run_dir, tmp_path):
