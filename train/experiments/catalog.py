@@ -279,9 +279,10 @@ def _task_experiments() -> list[Experiment]:
         Experiment(
             "shaping", "Fig. 5", "Environment shaping vs reward shaping",
             "Non-episodic training with environment shaping (sparse or subgoal reward), distance-based or "
-            "one-time reward shaping, or no shaping.",
+            "one-time reward shaping, or no shaping. The report films each condition's best seed with a "
+            "filmstrip of its first test episode (the paper's Fig. 11-12).",
             {t: _shaping_conditions(t) for t in PAPER_TASKS}, shaping_steps, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 100_000)}),
+            {"smoke": SMOKE, "quick": _quick(3, 100_000)}, videos=True),
         Experiment(
             "rnd", "Fig. 6 (right)", "Dynamism and shaping vs an exploration bonus (factory)",
             "Non-episodic factory: static, static + RND bonus, dynamic (p = 0.2), environment shaping.",

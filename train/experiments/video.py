@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from train.fileio import atomic_path
+from train.fileio import atomic_path, atomic_write
 from train.policy import Policy, load_policy
 
 H264_OPTIONS = ("-f", "mp4", "-threads", "1", "-movflags", "+faststart", "-map_metadata", "-1", "-fflags", "+bitexact",
@@ -49,6 +49,35 @@ def write_h264(frames: Sequence[np.ndarray], path: str | Path, fps: float = 8.0)
             writer.close()
     return Path(path)
 
+STRIP_FRAMES = 12
+"""Most frames in a filmstrip (the paper's Fig. 11-12 show an episode as a row of frames)."""
+STRIP_HEIGHT = 160
+"""Height in pixels of each frame of a filmstrip."""
+
+
+def write_filmstrip(frames: Sequence[np.ndarray], path: str | Path, count: int = STRIP_FRAMES) -> Path:
+    """One episode's RGB frames as a PNG row of at most ``count`` of them, each labelled with its step: all
+    frames of a short episode, else ``count`` evenly spaced from the first to the last.
+    """
+    import cv2
+
+    if not len(frames):
+        raise ValueError(f"no frames for the filmstrip {path}")
+    steps = np.unique(np.linspace(0, len(frames) - 1, min(count, len(frames))).round().astype(int))
+    tiles = []
+    for step in steps:
+        frame = np.asarray(frames[step], dtype=np.uint8)[:, :, :3]
+        width = max(1, round(frame.shape[1] * STRIP_HEIGHT / frame.shape[0]))
+        tile = cv2.resize(frame, (width, STRIP_HEIGHT), interpolation=cv2.INTER_NEAREST)
+        tile = cv2.copyMakeBorder(tile, 20, 2, 2, 2, cv2.BORDER_CONSTANT, value=(255, 255, 255))
+        cv2.putText(tile, f"t = {step}", (4, 15), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+        tiles.append(tile)
+    ok, png = cv2.imencode(".png", np.ascontiguousarray(np.concatenate(tiles, axis=1)[:, :, ::-1]))
+    if not ok:
+        raise ValueError(f"could not encode the filmstrip {path}")
+    return atomic_write(path, png.tobytes())
+
+
 VIDEO_EPSILON = 0.05
 """Exploration of the filmed policy (a little noise keeps a greedy agent from freezing in a loop)."""
 
@@ -79,6 +108,8 @@ class Film:
     """Episodes in which the task was solved (``info["solved"]``)."""
     total_return: float
     """Sum of the rewards over the film."""
+    first_episode: int
+    """Frames of the first episode (its reset frame to its last step)."""
 
 
 def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | None = None,
@@ -88,6 +119,7 @@ def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | 
     """
     obs, _ = env.reset(seed=seed)
     frames, started, solved, solved_now, taken, total = [env.render()], 1, 0, False, 0, 0.0
+    first_episode = None
     while steps is None or taken < steps:
         obs, reward, terminated, truncated, info = env.step(act(obs))
         frames.append(env.render())
@@ -95,13 +127,14 @@ def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | 
         total += float(reward)
         solved_now |= bool(info.get("solved", False))
         if terminated or truncated:
+            first_episode = first_episode or len(frames)
             solved, solved_now = solved + solved_now, False
             if (steps is None and started == episodes) or taken == steps:
                 break
             obs, _ = env.reset()
             frames.append(env.render())
             started += 1
-    return Film(frames, started, solved + solved_now, total)
+    return Film(frames, started, solved + solved_now, total, first_episode or len(frames))
 
 
 @dataclass(frozen=True)
@@ -118,6 +151,8 @@ class Video:
     """Sum of the rewards over the film."""
     metric: str
     """The task's evaluation metric, 'success' or 'return' (`train.tasks.Task.metric`)."""
+    strip: Path | None = None
+    """The filmstrip of the first episode, if one was asked for."""
 
     def summary(self) -> str:
         """One line on how the filmed episodes went, in the task's metric."""
@@ -128,13 +163,14 @@ class Video:
 
 def record_video(task: str | None, out: str | Path, policy_path: str | Path | None = None, steps: int | None = None,
                  seed: int = 0, seed_index: int = 0, train_env: bool = False, epsilon: float = VIDEO_EPSILON,
-                 episodes: int = VIDEO_EPISODES) -> Video:
+                 episodes: int = VIDEO_EPISODES, strip: str | Path | None = None) -> Video:
     """Write an H.264 MP4 of one rollout; return its path and how many episodes it shows solved.
 
     ``policy_path`` (a run directory, checkpoint or policy file) selects the trained policy (of seed number
     ``seed_index`` of a run); without it a uniform random policy acts. The film is ``steps`` steps long, or
     without ``steps`` ``episodes`` whole episodes (each at most the horizon; a reset-free env has one
     episode, so its film is one horizon long). ``seed`` seeds the first layout and the exploration draws.
+    ``strip``: also write the first episode as a filmstrip PNG there (`write_filmstrip`).
     """
     import gymnasium as gym
 
@@ -165,5 +201,6 @@ def record_video(task: str | None, out: str | Path, policy_path: str | Path | No
     finally:
         env.close()
     write_h264(film.frames, out, fps=fps)
-    return Video(Path(out), film.episodes, film.solved, film.total_return,
-                 get_task(task).metric)
+    if strip is not None:
+        strip = write_filmstrip(film.frames[:film.first_episode], strip)
+    return Video(Path(out), film.episodes, film.solved, film.total_return, get_task(task).metric, strip)

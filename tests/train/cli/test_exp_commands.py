@@ -121,8 +121,28 @@ def test_film_counts_whole_episodes_and_solved_ones():
     film = film_rollout(_CountingEnv(3), lambda obs: next(actions), seed=0, episodes=3)
     assert (film.episodes, film.solved) == (3, 2)
     assert len(film.frames) == 1 + 3 * 3 + 2  # first reset, 9 steps, two resets between episodes
+    assert film.first_episode == 4  # its reset frame and three steps
     film = film_rollout(_CountingEnv(3), lambda obs: 1, seed=0, steps=4)
     assert (film.episodes, film.solved, len(film.frames)) == (2, 1, 1 + 4 + 1)
+    assert film.first_episode == 4
+    assert film_rollout(_CountingEnv(9), lambda obs: 1, seed=0, steps=5).first_episode == 6  # cut short
+
+
+def test_a_filmstrip_shows_an_episode_frame_by_frame(tmp_path):
+    import cv2
+
+    from train.experiments.video import STRIP_HEIGHT, write_filmstrip
+
+    frames = [np.full((10, 20, 3), 20 * t % 256, np.uint8) for t in range(30)]
+    strip = cv2.imread(str(write_filmstrip(frames[:4], tmp_path / "short.png")))
+    tile = 2 * STRIP_HEIGHT + 4  # frames twice as wide as high, a border of 2 on each side
+    assert strip.shape == (STRIP_HEIGHT + 22, 4 * tile, 3)  # all four frames of a short episode
+    strip = cv2.imread(str(write_filmstrip(frames, tmp_path / "long.png", count=5)))
+    assert strip.shape[1] == 5 * tile  # five evenly spaced frames: t = 0, 7, 14, 22, 29
+    shades = [int(strip[STRIP_HEIGHT, i * tile + tile // 2, 0]) for i in range(5)]
+    assert shades == [20 * t % 256 for t in (0, 7, 14, 22, 29)]
+    with pytest.raises(ValueError, match="no frames"):
+        write_filmstrip([], tmp_path / "none.png")
 
 
 def test_run_condition_subset(capsys, tmp_path):

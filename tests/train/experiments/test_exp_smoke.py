@@ -58,17 +58,25 @@ def test_report_writes_figures_tables_and_page(report, smoke_tasks):
     assert str(root / "report.md") in stdout
 
 
-def test_headline_reports_have_videos_playable_in_browsers(report):
-    """Both headline experiments film each condition (4 each); no other experiment in the smoke run does."""
+def test_reports_have_videos_playable_in_browsers_with_filmstrips(report):
+    """Both headline experiments film each condition (4 each), and so does the shaping experiment (5 on
+    hunting, with the filmstrips of the paper's Fig. 11-12); no other experiment in the smoke run does.
+    """
     root, _ = report
-    for name in ("headline", "headline-waypoint"):
-        for cond in EXPERIMENTS[name].conditions["salad"]:
-            assert (root / name / "salad" / cond.name / "video.mp4").stat().st_size > 1000
+    filmed = [(name, task, cond.name) for name, task in (("headline", "salad"), ("headline-waypoint", "salad"),
+                                                          ("shaping", "hunting"))
+              for cond in EXPERIMENTS[name].conditions[task]]
+    assert len(filmed) == 13
+    for place in filmed:
+        assert root.joinpath(*place, "video.mp4").stat().st_size > 1000
+        assert root.joinpath(*place, "filmstrip.png").stat().st_size > 1000
     page = (root / "index.html").read_text()
-    assert page.count("<video") == 8 and page.count("type='video/mp4; codecs=") == 8
-    copies = list((root / "figures" / "videos").glob("*.mp4"))
-    assert len(copies) == 8 and all(b"avc1" in p.read_bytes()[:4096] for p in copies)  # H.264: browsers play it
-    assert len(list((root / "figures" / "videos").glob("*.png"))) == 8  # a poster (the middle frame) each
+    assert page.count("<video") == 13 and page.count("type='video/mp4; codecs=") == 13
+    assert page.count("<figure class='strip'>") == 13
+    videos = root / "figures" / "videos"
+    copies = list(videos.glob("*.mp4"))
+    assert len(copies) == 13 and all(b"avc1" in p.read_bytes()[:4096] for p in copies)  # H.264: browsers play it
+    assert len(list(videos.glob("*-strip.png"))) == 13 and len(list(videos.glob("*.png"))) == 26  # and posters
     assert not (root / "walls" / "walled-salad" / "no-shaping-episodic" / "video.mp4").exists()
 
 

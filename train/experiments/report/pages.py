@@ -193,7 +193,7 @@ STYLE = ("body{font-family:sans-serif;max-width:1400px;margin:auto;padding:1em}i
          "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;padding:3px 8px;font-size:90%}"
          "video{width:300px;margin:4px;background:#000}figure{display:inline-block;margin:4px;vertical-align:top}"
          "figcaption{font-size:80%;max-width:300px}.lead{border:2px solid #888;padding:0 1em;margin:1em 0}"
-         ".claim{font-size:110%}")
+         ".claim{font-size:110%}figure.strip{display:block}.strip figcaption{max-width:none}")
 """The page's style sheet."""
 
 
@@ -233,12 +233,17 @@ def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Seq
 
 
 def _video_tag(out: Path, video: WebVideo) -> str:
-    """A captioned H.264 <video> whose poster is its middle frame."""
+    """A captioned H.264 <video> whose poster is its middle frame, and its filmstrip if it has one."""
     src = html.escape(video.mp4.relative_to(out).as_posix())
     poster = html.escape(video.poster.relative_to(out).as_posix())
-    return (f"<figure><video controls loop muted preload='metadata' poster='{poster}'>"
-            f"<source src='{src}' type='video/mp4; codecs=\"avc1.42E01E\"'></video>"
-            f"<figcaption>{html.escape(video.caption)} (<a href='{src}'>mp4</a>)</figcaption></figure>")
+    tag = (f"<figure><video controls loop muted preload='metadata' poster='{poster}'>"
+           f"<source src='{src}' type='video/mp4; codecs=\"avc1.42E01E\"'></video>"
+           f"<figcaption>{html.escape(video.caption)} (<a href='{src}'>mp4</a>)</figcaption></figure>")
+    if video.strip is None:
+        return tag
+    strip = html.escape(video.strip.relative_to(out).as_posix())
+    return (f"{tag}<figure class='strip'><img src='{strip}' alt='filmstrip'><figcaption>the first episode, "
+            f"frame by frame</figcaption></figure>")
 
 
 def web_videos(source: Path, out: Path, sections: Sequence[Section]) -> list[WebVideo]:

@@ -22,6 +22,8 @@ from train.safeio import load_json
 
 VIDEO_INFO = "video.json"
 """Sidecar of a filmed run's ``video.mp4``: the seed filmed and the episodes solved."""
+STRIP_NAME = "filmstrip.png"
+"""Beside a filmed run's ``video.mp4``: its first episode as a row of frames (the paper's Fig. 11-12)."""
 
 
 def best_seed(run: Run) -> int:
@@ -30,11 +32,13 @@ def best_seed(run: Run) -> int:
 
 
 def film_best_seed(run: Run, target: Path) -> Path:
-    """Film the best seed of ``run`` (its final policy in the test MDP) into ``target``, with its sidecar."""
+    """Film the best seed of ``run`` (its final policy in the test MDP) into ``target``, with its sidecar and
+    the filmstrip of its first episode.
+    """
     from train.experiments.video import record_video
 
     index = best_seed(run)
-    video = record_video(None, target, policy_path=run.path, seed_index=index)
+    video = record_video(None, target, policy_path=run.path, seed_index=index, strip=target.with_name(STRIP_NAME))
     first = _first_seed(run.path)
     info = {"seed": first + index, "episodes": video.episodes, "solved": video.solved, "metric": video.metric,
             "summary": video.summary(), "final": float(run.values[-1][index])}
@@ -80,6 +84,8 @@ class WebVideo:
     caption: str
     source: Path
     """The video it copies."""
+    strip: Path | None = None
+    """A copy of the filmstrip beside the source video, if it has one."""
 
 
 def caption_of(video: Path, root: Path) -> str:
@@ -120,4 +126,8 @@ def web_copy(video: Path, out_dir: Path, name: str, caption: str, source: Path |
     if not ok:
         return None
     poster = atomic_write(out_dir / f"{name}.png", png.tobytes())
-    return WebVideo(mp4, poster, caption, source or video)
+    source = source or video
+    strip = source.with_name(STRIP_NAME) if source.name == "video.mp4" else None
+    if strip is not None and strip.is_file():
+        strip = atomic_write(out_dir / f"{name}-strip.png", strip.read_bytes())
+    return WebVideo(mp4, poster, caption, source, strip if strip is not None and strip.is_file() else None)
