@@ -12,6 +12,7 @@ import os
 from collections.abc import Sequence
 
 from train.agent.replay import Replay
+from train.agent.staging import STAGE_BYTES
 from train.config import TrainConfig
 
 FLOAT = 4
@@ -35,6 +36,8 @@ def estimate_bytes(cfg: TrainConfig, obs_dim: int, cells: int, num_params: int, 
         "networks": k * num_params * FLOAT * NETWORK_COPIES,
         "minibatch": k * d.batch_size * (2 * obs_dim + 8 * widest) * FLOAT,
         "replay slots": k * d.updates_per_epoch * d.batch_size * 8,
+        "staged minibatches": min(STAGE_BYTES, Replay.bytes_needed(k, 2 * d.updates_per_epoch * d.batch_size,
+                                                                   obs_dim, binary, d.float_obs_dtype)),
         "visits and worlds": k * cells * (8 + WORLD_BYTES_PER_CELL),
         "evaluation": k * (cfg.eval.eval_rollouts or 1) * (cells * WORLD_BYTES_PER_CELL + obs_dim * FLOAT),
     }

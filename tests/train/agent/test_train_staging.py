@@ -111,3 +111,15 @@ def test_a_cuda_graph_replays_the_eager_gradient_step(rnd):
     for learner in (loaded, graphed):
         learner.learn()
     assert torch.equal(loaded.agent.online, graphed.agent.online)
+
+
+def test_the_memory_check_counts_what_a_chunk_stages():
+    from train.memory import estimate_bytes
+
+    replay = _filled_replay()
+    stager = Stager(replay, TINY.dqn.batch_size, TINY.dqn.updates_per_epoch, torch.device("cpu"), static=False)
+    slots = replay.sample_indices([np.random.default_rng(k) for k in range(3)], stager.chunk, TINY.dqn.batch_size)
+    stager.load(slots)
+    staged = sum(a.nbytes for a in stager._arrays.values())
+    estimate = estimate_bytes(TINY.replace(seeds=3), 130, 64, 1000, True)["staged minibatches"]
+    assert staged <= estimate <= 2 * staged
