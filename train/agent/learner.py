@@ -121,9 +121,10 @@ class DQNLearner:
         self.loss_count = 0
         self._stager = Stager(self.replay, cfg.batch_size, cfg.updates_per_epoch, self.device, static_batches)
         self.graphs = graphs and self.device.type == "cuda"
-        """Replay each gradient step from one captured CUDA graph (on a GPU only)."""
+        """Replay each gradient step, and the acting forward pass, from captured CUDA graphs (on a GPU only)."""
         self._graph: torch.cuda.CUDAGraph | None = None
         self._eager_steps = 0
+        self._act_graph: tuple | None = None  # the acting forward pass's graph and its buffers (`_greedy_now`)
         self._draws = np.zeros((0, self.num_agents, 2))
         self._eps = {name: np.array([getattr(r.dqn, name) for r in self.rows], dtype=float)
                      for name in ("eps_start", "eps_end", "eps_decay_steps")}
@@ -161,9 +162,29 @@ class DQNLearner:
         actions = (draws[:, 1] * self.num_actions).astype(np.int64)
         if not explore.all():
             with torch.no_grad():
-                greedy = self.greedy(torch.from_numpy(obs).unsqueeze(1))[:, 0]
+                greedy = self._greedy_now(torch.from_numpy(obs).unsqueeze(1))
             actions = np.where(explore, actions, greedy)
         return actions
+
+    def _greedy_now(self, obs: torch.Tensor) -> np.ndarray:
+        """Greedy actions (K,) for one observation per row (K, 1, obs_dim): on a GPU with graphs on, the
+        forward pass is captured after its first, eager run and replayed, its input copied from pinned memory.
+        """
+        if not self.graphs:
+            return self.greedy(obs)[:, 0]
+        if self._act_graph is None:
+            host, on_device = obs.pin_memory(), obs.to(self.device)
+            first = self.agent.q_values(on_device).argmax(-1)
+            graph = torch.cuda.CUDAGraph()
+            with torch.cuda.graph(graph):  # records the kernels without running them
+                out = self.agent.q_values(on_device).argmax(-1)
+            self._act_graph = graph, host, on_device, out
+            return first[:, 0].cpu().numpy()
+        graph, host, on_device, out = self._act_graph
+        host.copy_(obs)
+        on_device.copy_(host, non_blocking=True)
+        graph.replay()
+        return out[:, 0].cpu().numpy()
 
     def q_values(self, obs: torch.Tensor) -> torch.Tensor:
         """Online action values (K, N, actions), on the CPU, of observations (K, N, obs_dim)."""

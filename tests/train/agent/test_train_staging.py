@@ -123,3 +123,18 @@ def test_the_memory_check_counts_what_a_chunk_stages():
     staged = sum(a.nbytes for a in stager._arrays.values())
     estimate = estimate_bytes(TINY.replace(seeds=3), 130, 64, 1000, True)["staged minibatches"]
     assert staged <= estimate <= 2 * staged
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_a_cuda_graph_acts_as_the_eager_forward_pass():
+    torch.backends.cuda.matmul.allow_tf32 = False
+    eager, graphed = _learner(device="cuda", graphs=False), _learner(device="cuda")
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        for learner in (eager, graphed):
+            learner.learn()  # the weights change in place between the steps
+            learner.begin_collect(4)
+        for _ in range(4):
+            obs = (rng.random((3, 130)) < 0.2).astype(np.float32)
+            assert np.array_equal(graphed.act(obs, 10**6), eager.act(obs, 10**6))
+    assert graphed._act_graph is not None and eager._act_graph is None
