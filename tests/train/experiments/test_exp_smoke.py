@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import csv
 import json
+import shutil
 
 import pytest
 
+from train.checkpoint import CHECKPOINT_NAME
 from train.experiments.catalog import EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
+from train.experiments.report import make_report
 from train.experiments.sweep import EXPERIMENT_FILE
 
 EXPECTED_FILES = ("config.json", "metrics.csv", "checkpoint.npz", "visits.npy", DONE_FILE)
@@ -96,3 +99,18 @@ def test_report_of_one_experiment_directory(smoke_root, cli, tmp_path):
     assert (smoke_root / "rnd" / "figures" / "rnd_curves.png").exists()
     proc = cli("report", str(tmp_path), check=False)
     assert proc.returncode == 2 and "is neither an experiment's results" in proc.stderr
+
+
+def test_results_shipped_without_checkpoints_are_filmed_from_their_exported_policies(report, tmp_path):
+    smoke_root, _ = report  # filmed from the checkpoints
+    shipped = tmp_path / "headline-waypoint"
+    shutil.copytree(smoke_root / "headline-waypoint", shipped,
+                    ignore=shutil.ignore_patterns(CHECKPOINT_NAME, "video.*", "filmstrip.png", "figures"))
+    make_report(shipped)
+    for cond in EXPERIMENTS["headline-waypoint"].conditions["salad"]:
+        run = shipped / "salad" / cond.name
+        assert not (run / CHECKPOINT_NAME).exists() and (run / "policies" / "best.npz").exists()
+        assert (run / "video.mp4").stat().st_size > 1000 and (run / "filmstrip.png").exists()
+        info = json.loads((run / "video.json").read_text())
+        best = json.loads((smoke_root / "headline-waypoint" / "salad" / cond.name / "video.json").read_text())
+        assert info["seed"] == best["seed"]  # the exported best seed is the seed the checkpoint's film shows

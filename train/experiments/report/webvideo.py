@@ -31,14 +31,16 @@ def best_seed(run: Run) -> int:
     return int(np.argmax(run.values[-1])) if run.values.size else 0
 
 
-def film_best_seed(run: Run, target: Path) -> Path:
+def film_best_seed(run: Run, target: Path, policy: Path | None = None) -> Path:
     """Film the best seed of ``run`` (its final policy in the test MDP) into ``target``, with its sidecar and
-    the filmstrip of its first episode.
+    the filmstrip of its first episode; ``policy``: the best seed's exported policy file, where the run kept
+    no checkpoint (shipped results).
     """
     from train.experiments.video import record_video
 
     index = best_seed(run)
-    video = record_video(None, target, policy_path=run.path, seed_index=index, strip=target.with_name(STRIP_NAME))
+    video = record_video(None, target, policy_path=policy or run.path, seed_index=index,
+                         strip=target.with_name(STRIP_NAME))
     first = _first_seed(run.path)
     info = {"seed": first + index, "episodes": video.episodes, "solved": video.solved, "metric": video.metric,
             "summary": video.summary(), "final": float(run.values[-1][index])}
@@ -55,15 +57,20 @@ def _first_seed(run_dir: Path) -> int:
 
 
 def render_missing_videos(exp: ExperimentResults) -> list[Path]:
-    """Film the best seed of every finished run that has a checkpoint and no ``video.mp4`` yet."""
+    """Film the best seed of every finished run that has no ``video.mp4`` yet, from its checkpoint or, without
+    one, its exported best policy (``policies/best.npz``).
+    """
+    from train.policy import RUN_POLICIES_DIR
     from train.rundir import RunDirError
 
     made = []
     for run in exp.runs:
         target = run.path / "video.mp4"
-        if run.done and not target.exists() and (run.path / CHECKPOINT_NAME).exists():
+        exported = run.path / RUN_POLICIES_DIR / "best.npz"
+        has_checkpoint = (run.path / CHECKPOINT_NAME).exists()
+        if run.done and not target.exists() and (has_checkpoint or exported.is_file()):
             try:
-                made.append(film_best_seed(run, target))
+                made.append(film_best_seed(run, target, None if has_checkpoint else exported))
             except (RunDirError, ValueError, FileNotFoundError) as err:
                 print(f"ecorl report: no video of {run.path}: {err}", file=sys.stderr)
     return made
