@@ -221,12 +221,14 @@ def _train(jobs: list[Job], opened: list) -> bool:
     try:
         with heartbeat_to(*(Path(j.run_dir) / PROGRESS_FILE for j in jobs)):  # the sweep shows progress from it
             trainer.run()
+        finished = trainer.epoch >= trainer.cfg.num_epochs
+        for index, job in enumerate(jobs if finished else []):  # while the worlds are still open
+            export_run_policies(job.run_dir, trainer.state_dict(index))
     finally:
         trainer.close()
-    if trainer.epoch < trainer.cfg.num_epochs:
+    if not finished:
         return False  # stopped by a signal, with a checkpoint
-    for index, (job, part) in enumerate(zip(jobs, trainer.parts)):
-        export_run_policies(job.run_dir, trainer.state_dict(index))
+    for job, part in zip(jobs, trainer.parts):
         marker = {"total_steps": part.cfg.total_steps, "seeds": part.cfg.run.seeds,
                   "seconds": round(time.perf_counter() - began, 1), "finished": time.strftime("%Y-%m-%dT%H:%M:%S")}
         if len(jobs) > 1:
