@@ -34,6 +34,9 @@ OTHER_COLORS = ("#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"
 
 PNG_METADATA = {"Software": None}
 """PNG metadata of every figure: none (matplotlib would otherwise write its version)."""
+LEGEND_INCHES_PER_CHAR = 0.065
+"""About how wide a character of the legend's 9-point text is: the legend takes as many columns as its
+longest label leaves room for, so no label runs off the figure."""
 
 
 def condition_color(name: str) -> str:
@@ -101,7 +104,8 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
 
         handles[reference_label(reference)] = Line2D([], [], color="gray", ls="--")
     if handles:
-        legend_cols = max(1, min(len(handles), int(width // 3.6)))
+        longest = max(len(label) for label in handles) * LEGEND_INCHES_PER_CHAR + 0.6  # text and its line
+        legend_cols = max(1, min(len(handles), int(width // max(3.6, longest))))
         fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=legend_cols,
                    frameon=False, fontsize=9)
     seeds = sorted({r.seeds for r in exp.runs})
