@@ -39,7 +39,7 @@ class Stager:
         """Chunks of at most ``steps`` gradient steps of ``batch_size`` transitions per agent row, for
         updates on ``device``; ``static`` as above (a GPU always uses it).
         """
-        self.replay, self.device = replay, device
+        self.replay = replay
         self.static = static or device.type != "cpu"
         k, width = replay.num_agents, replay.obs.shape[2]
         per_step = k * batch_size * (2 * width * replay.obs.itemsize + 1 + 4 + 1)
@@ -51,14 +51,13 @@ class Stager:
                   "action": ((k, self.chunk, batch_size), np.uint8),
                   "reward": ((k, self.chunk, batch_size), np.float32),
                   "flags": ((k, self.chunk, batch_size), np.uint8)}
-        self.buffers = {name: torch.zeros(shape, dtype=_torch_dtype(dtype), device=device)
-                        for name, (shape, dtype) in shapes.items()}
-        pinned = device.type == "cuda"  # the host side of the copies: page-locked, so they run asynchronously
-        self._host = self.buffers if device.type == "cpu" else {
-            name: torch.zeros_like(b, device="cpu").pin_memory() for name, b in self.buffers.items()}
+        host = {name: torch.from_numpy(np.zeros(shape, dtype)) for name, (shape, dtype) in shapes.items()}
+        on_gpu = device.type != "cpu"  # then the host side of the copies is page-locked, so they run asynchronously
+        self._host = {name: t.pin_memory() for name, t in host.items()} if on_gpu else host
+        self.buffers = {name: t.to(device) for name, t in host.items()} if on_gpu else host
         self.index = torch.zeros(1, dtype=torch.int64, device=device)
         """The step of the chunk that `batch` reads in static mode (set by `select`)."""
-        self._copied = torch.cuda.Event() if pinned else None
+        self._copied = torch.cuda.Event() if on_gpu else None
 
     def load(self, slots: np.ndarray) -> int:
         """Stage the transitions at ``slots`` (K, m, B) with m <= `chunk`; return m."""
@@ -95,7 +94,3 @@ class Stager:
         return Batch(obs_pairs=obs, actions=pick["action"].long(), rewards=pick["reward"],
                      terminated=pick["flags"].bitwise_and(int(TERMINATED)).float())
 
-
-def _torch_dtype(dtype: np.dtype) -> torch.dtype:
-    """The torch dtype of a numpy dtype."""
-    return torch.from_numpy(np.zeros(0, dtype=dtype)).dtype
