@@ -42,6 +42,7 @@ def test_different_grid_sizes_are_mangled_differently():
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)
 def test_kernels_cached_by_separate_processes_load_together(tmp_path):
     # each size compiled (and cached) by its own process, then all loaded by one: crashed in LLVM before
     run = "import gridtasks\nfor n in ({}):\n    e = gridtasks.SaladEnv(grid_size=n); e.reset(seed=0); e.step(4)\n"

@@ -9,11 +9,13 @@ from __future__ import annotations
 import os
 import signal
 import threading
+import time
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 
 from train.experiments.jobs import Job, JobResult, Pack, execute_unit
 from train.fileio import die_with_parent
+from train.runlog import stop_requested
 
 _STOP = None
 """In a local worker process: the sweep's stop event (set when the user interrupts the sweep)."""
@@ -33,6 +35,22 @@ def _init_worker(stop, parent: int) -> None:
     die_with_parent(signal.SIGTERM)
     if _parent_gone():  # it died before the request took effect
         os._exit(1)
+    threading.Thread(target=_watch_parent, daemon=True, name="ecorl-parent-watch").start()
+
+
+PARENT_POLL_S = 1.0
+"""How often a local worker checks that its sweep still lives."""
+
+
+def _watch_parent() -> None:
+    """In a worker: once the sweep is gone, SIGTERM to itself (a clean stop), unless the kernel's parent-death
+    signal already asked for one; some systems lack that signal, and a second SIGTERM would cut the stop short.
+    """
+    while not _parent_gone():
+        time.sleep(PARENT_POLL_S)
+    time.sleep(2 * PARENT_POLL_S)  # room for the kernel's signal to arrive and be handled first
+    if not stop_requested():
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 def _parent_gone() -> bool:

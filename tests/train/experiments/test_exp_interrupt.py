@@ -53,18 +53,23 @@ def _checkpoint_step(run_dir: Path) -> int:
 
 def _kill_when_training(out: Path) -> None:
     """Start the sweep in its own process group and SIGKILL the group once a run is part-way through."""
-    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *ARGS, "--out", str(out)], cwd=REPO,
-                            start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    log = out.with_name(out.name + ".log")
+    with open(log, "w") as err:  # a file, not a pipe: reading it never waits on a worker
+        proc = subprocess.Popen([sys.executable, "-m", "train.cli", *ARGS, "--out", str(out)], cwd=REPO,
+                                start_new_session=True, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                stderr=err)
     deadline = time.monotonic() + 240
     try:
         while not _evaluated_twice(out):
-            assert proc.poll() is None, f"sweep ended before it could be interrupted: {proc.stderr.read()}"
+            assert proc.poll() is None, f"sweep ended before it could be interrupted: {log.read_text()}"
             assert time.monotonic() < deadline, "no evaluation logged within 240 s"
             time.sleep(0.05)
     finally:
-        os.killpg(proc.pid, signal.SIGKILL)
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:  # the sweep and its workers are all gone already
+            pass
         proc.wait()
-        proc.stderr.close()
 
 
 def test_sigkill_then_rerun_matches_an_uninterrupted_sweep(tmp_path, cli):

@@ -169,10 +169,14 @@ def test_concurrent_task_subsets_keep_every_entry_of_experiment_json(tmp_path, m
 
 
 def _children(pid: int) -> set[int]:
-    try:
-        return {int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()}
-    except FileNotFoundError:
-        return set()
+    """The processes that any thread of ``pid`` started."""
+    kids = set()
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            kids |= {int(c) for c in (task / "children").read_text().split()}
+        except FileNotFoundError:
+            pass
+    return kids
 
 
 def _alive(pid: int) -> bool:
@@ -182,17 +186,29 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _describe(pid: int) -> str:
+    """A process's command line, state and kernel wait channel, for a failure message."""
+    try:
+        cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()[:160]
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+        wchan = Path(f"/proc/{pid}/wchan").read_text()
+    except (FileNotFoundError, ProcessLookupError):
+        return f"{pid}: gone"
+    return f"{pid} [{state}, waiting in {wchan or '-'}]: {cmd}"
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and PR_SET_PDEATHSIG")
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_workers_stop_when_the_sweep_dies_and_start_nothing_queued(tmp_path, sig):
-    out = tmp_path / "out"
+    out, log = tmp_path / "out", tmp_path / "sweep.log"
     args = ("run", "rnd", "--budget", "smoke", "--steps", "200000", "--jobs", "1", "--no-progress", "--out", str(out))
-    sweep = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
-                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    with open(log, "w") as err:  # a file, not a pipe: no read can wait on a process that outlives the sweep
+        sweep = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
+                                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=err)
     try:
         deadline = time.monotonic() + 120
         while not list(out.glob("rnd/factory/*/metrics.csv")):  # the first condition is training
-            assert sweep.poll() is None, f"the sweep ended early: {sweep.stderr.read()}"
+            assert sweep.poll() is None, f"the sweep ended early: {log.read_text()}"
             assert time.monotonic() < deadline, "no condition started training within 120 s"
             time.sleep(0.1)
         workers = _children(sweep.pid)
@@ -201,12 +217,38 @@ def test_workers_stop_when_the_sweep_dies_and_start_nothing_queued(tmp_path, sig
         sweep.wait(timeout=60)
         deadline = time.monotonic() + 60
         while any(_alive(w) for w in workers):
-            assert time.monotonic() < deadline, "a worker outlived its sweep"
+            survivors = "; ".join(_describe(w) for w in workers if _alive(w))
+            assert time.monotonic() < deadline, f"a worker outlived its sweep by 60 s: {survivors}"
             time.sleep(0.1)
     finally:
-        os.killpg(sweep.pid, signal.SIGKILL) if sweep.poll() is None else None
-        log = sweep.stderr.read()
-        sweep.stderr.close()
+        try:  # the sweep's session: whatever of it still lives (the workers did not leave it)
+            os.killpg(sweep.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        sweep.wait()
     started = [p.name for p in out.glob("rnd/factory/*") if (p / "config.json").exists()]
-    assert len(started) == 1, f"queued conditions started: {started}; the sweep said: {log}"
+    assert len(started) == 1, f"queued conditions started: {started}; the sweep said: {log.read_text()}"
     assert (out / "rnd" / "factory" / started[0] / CHECKPOINT_NAME).exists()
+
+
+_WATCH = """
+import signal, sys, threading, time
+from train.experiments import executors
+from train.runlog import stop_on_signal
+executors._PARENT, executors.PARENT_POLL_S = -1, 0.05  # a sweep pid that is not this process's parent: gone
+terms = []
+with stop_on_signal() as stop:
+    signal.signal(signal.SIGTERM, lambda *_: (terms.append(1), stop.set()))
+    if sys.argv[1] == "already-stopping":
+        stop.set()  # as after the kernel's parent-death signal
+    threading.Thread(target=executors._watch_parent, daemon=True).start()
+    time.sleep(1.0)
+print(len(terms))
+"""
+
+
+@pytest.mark.parametrize("state, expected", [("running", "1"), ("already-stopping", "0")])
+def test_a_worker_stops_itself_when_its_sweep_is_gone_without_a_second_signal(state, expected):
+    out = subprocess.run([sys.executable, "-c", _WATCH, state], cwd=REPO, capture_output=True, text=True,
+                         timeout=60, check=True)
+    assert out.stdout.strip() == expected
