@@ -5,13 +5,19 @@
 # $OUT/gpu_checks.log (or ./gpu_checks.log).
 #
 #     bash benchmarks/gpu_checks.sh
-set -euo pipefail
-python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site wheels/*.whl
+set -uo pipefail  # no -e: one failing step (say a CUDA test) must not cost the lent minutes of the others
+python3 -m pip install -q --no-index --no-deps --no-compile --upgrade --target /tmp/site wheels/*.whl || exit 1
 export PYTHONPATH="/tmp/site:$PWD" PYTHONUNBUFFERED=1
+
+step() {  # run one check; say so when it fails, then go on
+    echo "== $*"
+    "$@" || echo "!! failed (exit $?): $*"
+}
+
 {
-    nvidia-smi -L || true
-    python3 -c "import torch; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())"
-    python3 -m pytest -q -p no:cacheprovider tests/train/agent/test_train_staging.py tests/train/agent/test_train_dqn.py
-    python3 benchmarks/bench_gpu.py --ks 10 40 330 --epochs 3
-    python3 benchmarks/bench_gpu.py --profile 40 | head -45
+    step nvidia-smi -L
+    step python3 -c "import torch; print('torch', torch.__version__, 'cuda', torch.cuda.is_available())"
+    step python3 -m pytest -q -p no:cacheprovider tests/train/agent/test_train_staging.py tests/train/agent/test_train_dqn.py
+    step python3 benchmarks/bench_gpu.py --ks 10 40 330 --epochs 3
+    step python3 benchmarks/bench_gpu.py --profile 40
 } 2>&1 | tee "${OUT:-.}/gpu_checks.log"
