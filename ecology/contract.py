@@ -42,8 +42,8 @@ class VisitGrid:
         pos = np.asarray(positions)
         scaled = (pos - np.asarray(self.origin)) * self.cells_per_unit
         cells = scaled.astype(np.int64)
-        rows = np.clip(cells[:, 1], 0, self.shape[0] - 1)
-        cols = np.clip(cells[:, 0], 0, self.shape[1] - 1)
+        rows = np.minimum(np.maximum(cells[:, 1], 0), self.shape[0] - 1)  # np.clip, at a fraction of its cost
+        cols = np.minimum(np.maximum(cells[:, 0], 0), self.shape[1] - 1)
         return rows, cols
 
 

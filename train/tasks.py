@@ -130,6 +130,18 @@ def make_vector_env(env_id: str, num_envs: int, kwargs: dict[str, Any], threads:
     return gym.vector.SyncVectorEnv([partial(gym.make, env_id, **kwargs)] * num_envs)
 
 
+def step_worlds(env: gym.vector.VectorEnv, actions: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Step every world of a training vector env: (obs, reward, terminated, truncated, agent positions
+    (N, 2)), fresh arrays. The grid tasks' `step_arrays` skips the info dict (the same numbers); other envs
+    take `step`.
+    """
+    if isinstance(env, gridtasks.GridTaskVectorEnv) and env.copy:
+        return env.step_arrays(actions)
+    obs, reward, terminated, truncated, info = env.step(actions)
+    return obs, reward, terminated, truncated, np.asarray(info["agent_pos"])
+
+
 # ---- environment state as data (for checkpoints) -------------------------------------------------------
 
 

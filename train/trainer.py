@@ -33,7 +33,7 @@ from train.packing import check_device, check_packable
 from train.rundir import RunDir, RunDirError
 from train.runlog import RunLogger, postfix, progress_bar, stop_on_signal
 from train.statecheck import check_state
-from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state
+from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state, step_worlds
 
 __all__ = ["CHECKPOINT_VERSION", "STREAMS", "Part", "Trainer", "resolve", "seed_streams"]
 
@@ -210,12 +210,15 @@ class Trainer:
     def _env_step(self, actions: np.ndarray) -> None:
         """Step every world once with ``actions`` and record what happened."""
         stored = ~self.autoreset  # worlds whose previous step ended only reset now
-        results = [p.env.step(actions[p.rows]) for p in self.parts]
-        obs, reward, terminated, truncated = (np.concatenate([r[i] for r in results]) for i in range(4))
+        results = [step_worlds(p.env, actions[p.rows]) for p in self.parts]
+        if len(results) == 1:
+            obs, reward, terminated, truncated = results[0][:4]
+        else:
+            obs, reward, terminated, truncated = (np.concatenate([r[i] for r in results]) for i in range(4))
         self.learner.observe(stored, self.obs, actions, reward, terminated, truncated, obs)
         self.autoreset = (terminated | truncated) & stored
         for part, result in zip(self.parts, results):
-            rows, cols = self.info.visit_grid.cells(result[4]["agent_pos"])
+            rows, cols = self.info.visit_grid.cells(result[4])
             part.visits[np.arange(part.cfg.run.seeds), rows, cols] += 1
         self.train_reward += reward
         self.obs = obs.astype(np.float32, copy=False)

@@ -51,3 +51,21 @@ def test_evaluation_is_per_seed_and_repeatable():
     again = trainer.evaluator(trainer.agent, trainer.seeds, trainer.step)
     assert np.array_equal(first.success, again.success) and np.array_equal(first.returns, again.returns)
     assert first.success.shape == (2,)
+
+
+@pytest.mark.parametrize("task", ["salad", "foodcollector"])
+def test_the_trainers_step_gives_what_gymnasiums_step_gives(task):
+    from train.tasks import get_task, make_vector_env, step_worlds
+
+    env_id = get_task(task).env_id
+    fast, slow = make_vector_env(env_id, 3, {}), make_vector_env(env_id, 3, {})
+    fast.reset(seed=[4, 5, 6])
+    slow.reset(seed=[4, 5, 6])
+    actions = np.random.default_rng(0).integers(0, fast.single_action_space.n, (40, 3))
+    for a in actions:
+        obs, reward, terminated, truncated, pos = step_worlds(fast, a)
+        expected = slow.step(a)
+        for got, want in zip((obs, reward, terminated, truncated, pos), (*expected[:4], expected[4]["agent_pos"])):
+            np.testing.assert_array_equal(got, want)
+    fast.close()
+    slow.close()

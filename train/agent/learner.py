@@ -128,6 +128,8 @@ class DQNLearner:
         self._draws = np.zeros((0, self.num_agents, 2))
         self._eps = {name: np.array([getattr(r.dqn, name) for r in self.rows], dtype=float)
                      for name in ("eps_start", "eps_end", "eps_decay_steps")}
+        decay = self._eps["eps_decay_steps"]
+        self._eps["decays"], self._eps["span"] = decay > 0, np.where(decay > 0, decay, 1.0)  # no 0 to divide by
 
     @property
     def num_agents(self) -> int:
@@ -149,10 +151,9 @@ class DQNLearner:
         """Each row's exploration epsilon at lifetime step ``step`` (K,): `DQNConfig.epsilon` of every row at
         once, the same arithmetic.
         """
-        start, end, decay = self._eps["eps_start"], self._eps["eps_end"], self._eps["eps_decay_steps"]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            frac = np.where(decay > 0, np.minimum(max(step, 0) / decay, 1.0), 1.0)
-        return start + (end - start) * frac
+        eps = self._eps
+        frac = np.where(eps["decays"], np.minimum(max(step, 0) / eps["span"], 1.0), 1.0)
+        return eps["eps_start"] + (eps["eps_end"] - eps["eps_start"]) * frac
 
     def act(self, obs: np.ndarray, step: int) -> np.ndarray:
         """Epsilon-greedy actions (K,), from the noise drawn by `begin_collect`."""
