@@ -136,8 +136,9 @@ def step_worlds(env: gym.vector.VectorEnv, actions: np.ndarray
     (N, 2)), fresh arrays. The grid tasks' `step_arrays` skips the info dict (the same numbers); other envs
     take `step`.
     """
-    if isinstance(env, gridtasks.GridTaskVectorEnv) and env.copy:
-        return env.step_arrays(actions)
+    if isinstance(env, gridtasks.GridTaskVectorEnv):
+        *arrays, positions = env.step_arrays(actions)
+        return (*(a if env.copy else a.copy() for a in arrays), positions)  # never the env's own buffers
     obs, reward, terminated, truncated, info = env.step(actions)
     return obs, reward, terminated, truncated, np.asarray(info["agent_pos"])
 

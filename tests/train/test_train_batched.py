@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gymnasium
 import numpy as np
 import pytest
 import torch
@@ -69,3 +70,16 @@ def test_the_trainers_step_gives_what_gymnasiums_step_gives(task):
             np.testing.assert_array_equal(got, want)
     fast.close()
     slow.close()
+
+
+def test_the_trainers_step_never_returns_the_envs_own_buffers():
+    from train.tasks import get_task, step_worlds
+
+    env = gymnasium.make_vec(get_task("salad").env_id, num_envs=2, vectorization_mode="vector_entry_point", copy=False)
+    env.reset(seed=[0, 1])
+    first = step_worlds(env, np.array([1, 2]))
+    kept = [a.copy() for a in first]
+    step_worlds(env, np.array([3, 4]))
+    for got, want in zip(first, kept):
+        np.testing.assert_array_equal(got, want)
+    env.close()
