@@ -23,12 +23,12 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from train.config import TrainConfig  # noqa: E402
+from bench_gpu import BASE as GPU_BASE  # noqa: E402 (this script's folder is on the path)
+
 from train.trainer import Trainer  # noqa: E402
 
-BASE = TrainConfig().replace(task="salad", dynamism=0.1, reset_free=True, reward="waypoint", warmup_steps=500,
-                             buffer_size=50_000, eval_every=500_000, progress=False, threads=1)
-"""Salad as the headline panel trains it; a smaller replay so large K fits any host."""
+BASE = GPU_BASE.replace(reward="waypoint")
+"""bench_gpu's salad trainer with the headline panel's reward."""
 
 
 def per_step_ms(k: int, steps: int, rounds: int, epsilon: float) -> list[float]:

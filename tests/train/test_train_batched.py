@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from train.config import TrainConfig
+from train.tasks import get_task, make_vector_env, step_worlds
 from train.trainer import Trainer
 
 TINY = dict(task="salad", dynamism=0.1, eps_start=0.3, warmup_steps=200, epoch_steps=100, updates_per_epoch=30,
@@ -56,8 +57,6 @@ def test_evaluation_is_per_seed_and_repeatable():
 
 @pytest.mark.parametrize("task", ["salad", "foodcollector"])
 def test_the_trainers_step_gives_what_gymnasiums_step_gives(task):
-    from train.tasks import get_task, make_vector_env, step_worlds
-
     env_id = get_task(task).env_id
     fast, slow = make_vector_env(env_id, 3, {}), make_vector_env(env_id, 3, {})
     fast.reset(seed=[4, 5, 6])
@@ -73,8 +72,6 @@ def test_the_trainers_step_gives_what_gymnasiums_step_gives(task):
 
 
 def test_the_trainers_step_never_returns_the_envs_own_buffers():
-    from train.tasks import get_task, step_worlds
-
     env = gymnasium.make_vec(get_task("salad").env_id, num_envs=2, vectorization_mode="vector_entry_point", copy=False)
     env.reset(seed=[0, 1])
     first = step_worlds(env, np.array([1, 2]))

@@ -179,22 +179,26 @@ def _children(pid: int) -> set[int]:
     return kids
 
 
-def _alive(pid: int) -> bool:
+def _state(pid: int) -> str | None:
+    """A process's state letter (R, S, Z, ...); None once it is gone."""
     try:
-        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
     except FileNotFoundError:
-        return False
+        return None
+
+
+def _alive(pid: int) -> bool:
+    return _state(pid) not in (None, "Z")
 
 
 def _describe(pid: int) -> str:
     """A process's command line, state and kernel wait channel, for a failure message."""
     try:
         cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()[:160]
-        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
         wchan = Path(f"/proc/{pid}/wchan").read_text()
     except (FileNotFoundError, ProcessLookupError):
         return f"{pid}: gone"
-    return f"{pid} [{state}, waiting in {wchan or '-'}]: {cmd}"
+    return f"{pid} [{_state(pid)}, waiting in {wchan or '-'}]: {cmd}"
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="uses /proc and PR_SET_PDEATHSIG")
@@ -217,8 +221,8 @@ def test_workers_stop_when_the_sweep_dies_and_start_nothing_queued(tmp_path, sig
         sweep.wait(timeout=60)
         deadline = time.monotonic() + 60
         while any(_alive(w) for w in workers):
-            survivors = "; ".join(_describe(w) for w in workers if _alive(w))
-            assert time.monotonic() < deadline, f"a worker outlived its sweep by 60 s: {survivors}"
+            assert time.monotonic() < deadline, ("a worker outlived its sweep by 60 s: "  # described on failure only
+                                                 + "; ".join(_describe(w) for w in workers if _alive(w)))
             time.sleep(0.1)
     finally:
         try:  # the sweep's session: whatever of it still lives (the workers did not leave it)
