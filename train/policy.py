@@ -26,7 +26,7 @@ from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.config import TrainConfig
 from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
 from train.fileio import atomic_file
-from train.rundir import RunDir, RunDirError
+from train.rundir import EXPERIMENT_FILE, RunDir, RunDirError
 from train.safeio import load_json, loads_json, open_regular, read_npy, read_text
 from train.statecheck import check_counter
 from train.tasks import get_task, probe
@@ -156,13 +156,24 @@ def _load_run(path: str | Path) -> tuple[Path, dict[str, Any]]:
     return run_dir, state
 
 
+def run_label(run_dir: Path) -> str:
+    """The name a policy file gives the run it came from: ``EXPERIMENT/TASK/CONDITION`` for a run of
+    ``ecorl run``, else the run directory's own name. Never a path of the machine that exported it, since
+    policy files are shipped.
+    """
+    run_dir = Path(run_dir).resolve()
+    if (run_dir.parent.parent / EXPERIMENT_FILE).is_file():
+        return "/".join(run_dir.parts[-3:])
+    return run_dir.name
+
+
 def _policy_of(run_dir: Path, state: dict[str, Any], seed_index: int) -> Policy:
     """Seed number ``seed_index`` of a loaded checkpoint as a `Policy`."""
     cfg = TrainConfig.from_dict(state["config"])
     if not 0 <= seed_index < cfg.run.seeds:
         raise ValueError(f"{run_dir} trained {cfg.run.seeds} seed(s); --agent must be in [0, {cfg.run.seeds})")
     step = int(state["step"])
-    meta = {"source": str(run_dir), "step": step, "agent": seed_index}
+    meta = {"source": run_label(run_dir), "step": step, "agent": seed_index}
     success = validation_success(run_dir, step)
     if seed_index in success:
         meta["validation_success"] = success[seed_index]

@@ -40,6 +40,10 @@ METRIC_COLUMNS = ("step", "seed", "epsilon", "loss", "max_q", "success", "return
 files written before it existed); ``return`` is the mean validation return; ``train_reward`` the summed
 training reward since the previous evaluation; ``steps_per_s`` environment steps per second per seed."""
 
+EXPERIMENT_FILE = "experiment.json"
+"""Description of an experiment directory (``OUT/EXPERIMENT/``, whose runs are ``TASK/CONDITION/`` below it),
+written by ``ecorl run``."""
+
 LOCK_NAME = ".lock"
 """The lock file of a run directory (held by the one process that writes the run)."""
 

@@ -34,11 +34,8 @@ from train.experiments.catalog import Experiment, job_config
 from train.experiments.executors import run_local, run_ray
 from train.experiments.jobs import Job, JobResult, Pack, job_is_done
 from train.fileio import atomic_text
+from train.rundir import EXPERIMENT_FILE
 from train.safeio import load_json, real_dir
-
-EXPERIMENT_FILE = "experiment.json"
-"""Description of an experiment directory, written by `run_experiment`."""
-
 
 EXPERIMENT_LOCK = ".experiment.lock"
 """Lock file serialising updates of experiment.json by concurrent ``ecorl run`` processes."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -58,6 +59,15 @@ def test_metadata_pairs_the_checkpoint_with_its_evaluation(run_dir):
     row = next(r for r in rows if int(r["seed"]) == policy.seed)
     assert policy.meta["validation_success"] == float(row["success"])
     assert policy.seed == policy.cfg.run.seed_list[1]
+
+
+def test_the_provenance_names_the_run_not_the_machines_path(run_dir, tmp_path):
+    assert policy_from_run(run_dir, 0).meta["source"] == "/".join(RUN)  # inside an experiment's results
+    alone = tmp_path / "deep" / "my-run"
+    shutil.copytree(run_dir, alone)
+    assert policy_from_run(alone, 0).meta["source"] == "my-run"  # an ``ecorl train`` run directory
+    header = load_policy(export_policy(alone, tmp_path / "p.npz")).meta
+    assert str(tmp_path) not in json.dumps(header)
 
 
 def test_export_picks_the_best_seed_at_the_checkpoint(run_dir, tmp_path):
@@ -190,3 +200,13 @@ def test_shipped_policy_beats_a_random_policy(path):
     random = policy.evaluate(rollouts=100, epsilon=1.0)  # the paper's protocol with a uniform random policy
     assert trained.success[0] >= random.success[0] + 0.25, (trained, random)
     assert trained.returns[0] > random.returns[0], (trained, random)
+
+
+RESULT_POLICIES = sorted(Path(__file__).resolve().parents[3].glob("docs/results/**/policies/*.npz"))
+
+
+def test_every_shipped_policy_names_its_run_without_a_machines_path():
+    for path in SHIPPED + RESULT_POLICIES:
+        source = load_policy_file(path).meta["source"]
+        assert source and not Path(source).is_absolute(), (path, source)
+    assert len(RESULT_POLICIES) >= 16  # the salad-gap arms' best and median seeds

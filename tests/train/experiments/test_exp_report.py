@@ -14,8 +14,7 @@ from train.experiments.report import make_report
 from train.experiments.report.paper import format_paper, load_paper, paper_value
 from train.experiments.report.runs import read_metrics
 from train.experiments.report.stats import bootstrap_ci
-from train.experiments.sweep import EXPERIMENT_FILE
-from train.rundir import METRIC_COLUMNS
+from train.rundir import EXPERIMENT_FILE, METRIC_COLUMNS
 
 
 def test_bootstrap_ci_brackets_the_mean():

@@ -74,7 +74,7 @@ def test_a_headline_page_leads_with_the_shipped_paper_budget_panels(tmp_path, na
     import json
 
     from train.experiments.catalog import get_experiment
-    from train.experiments.sweep import EXPERIMENT_FILE
+    from train.rundir import EXPERIMENT_FILE
 
     exp = get_experiment(name)
     root = tmp_path / "results" / name

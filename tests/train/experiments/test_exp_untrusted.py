@@ -21,7 +21,8 @@ from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME
 from train.cli import main
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import DONE_FILE
-from train.experiments.sweep import EXPERIMENT_FILE, plan, write_experiment_file
+from train.experiments.sweep import plan, write_experiment_file
+from train.rundir import EXPERIMENT_FILE
 
 REPO = Path(__file__).resolve().parents[3]
 

@@ -17,7 +17,7 @@ from train.experiments.report.figures import plot_curves
 from train.experiments.report.runs import ExperimentResults, load_experiment
 from train.experiments.report.stats import LEARNED, summarize
 from train.experiments.report.tables import FINAL_COLUMNS, final_rows
-from train.experiments.sweep import EXPERIMENT_FILE
+from train.rundir import EXPERIMENT_FILE
 
 LEAD = {"headline": ("headline", "headline-waypoint"), "headline-waypoint": ("headline", "headline-waypoint")}
 """Experiment -> the shipped experiments its page leads with."""

@@ -46,8 +46,8 @@ from train.experiments.report.tables import (
     milestone_rows,
 )
 from train.experiments.report.webvideo import WebVideo, caption_of, find_videos, render_missing_videos, web_copy
-from train.experiments.sweep import EXPERIMENT_FILE
 from train.fileio import atomic_text
+from train.rundir import EXPERIMENT_FILE
 
 
 @dataclass

@@ -15,7 +15,7 @@ from train.config import TrainConfig
 from train.experiments.catalog import BUDGETS, EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
 from train.experiments.report.stats import blown, diverged
-from train.experiments.sweep import EXPERIMENT_FILE
+from train.rundir import EXPERIMENT_FILE
 from train.safeio import load_json, read_text
 
 REFERENCE_DIR = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
