@@ -10,7 +10,8 @@ what a learner of those rows alone would save (`state_dict(rows)`).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -122,6 +123,7 @@ class DQNLearner:
         self._stager = Stager(self.replay, cfg.batch_size, cfg.updates_per_epoch, self.device, static_batches)
         self.graphs = graphs and self.device.type == "cuda"
         """Replay each gradient step, and the acting forward pass, from captured CUDA graphs (on a GPU only)."""
+        self._stream = torch.cuda.Stream(self.device) if self.graphs else None  # see `_capture_stream`
         self._graph: torch.cuda.CUDAGraph | None = None
         self._eager_steps = 0
         self._act_graph: tuple | None = None  # the acting forward pass's graph and its buffers (`_greedy_now`)
@@ -175,10 +177,11 @@ class DQNLearner:
             return self.greedy(obs)[:, 0]
         if self._act_graph is None:
             host, on_device = obs.pin_memory(), obs.to(self.device)
-            first = self.agent.q_values(on_device).argmax(-1)
-            graph = torch.cuda.CUDAGraph()
-            with torch.cuda.graph(graph):  # records the kernels without running them
-                out = self.agent.q_values(on_device).argmax(-1)
+            with self._capture_stream():
+                first = self.agent.q_values(on_device).argmax(-1)
+                graph = torch.cuda.CUDAGraph()
+                with torch.cuda.graph(graph, stream=self._stream):  # records the kernels without running them
+                    out = self.agent.q_values(on_device).argmax(-1)
             self._act_graph = graph, host, on_device, out
             return first[:, 0].cpu().numpy()
         graph, host, on_device, out = self._act_graph
@@ -227,14 +230,30 @@ class DQNLearner:
             stager.select(i)
         if self._graph is not None:
             self._graph.replay()
-        else:
+        elif not self.graphs:
             self._update(stager.batch(i))
-            self._eager_steps += 1
-            if self.graphs and self._eager_steps == GRAPH_WARMUP:
-                self._graph = torch.cuda.CUDAGraph()
-                with torch.cuda.graph(self._graph):  # records the kernels without running them
-                    self._update(stager.batch(i))
+        else:
+            with self._capture_stream():
+                self._update(stager.batch(i))
+                self._eager_steps += 1
+                if self._eager_steps == GRAPH_WARMUP:
+                    self._graph = torch.cuda.CUDAGraph()
+                    with torch.cuda.graph(self._graph, stream=self._stream):  # records the kernels, runs none
+                        self._update(stager.batch(i))
         self.loss_count += 1
+
+    @contextmanager
+    def _capture_stream(self) -> Iterator[None]:
+        """Run the enclosed GPU work on the learner's own side stream, after what the current stream has
+        queued and before what it queues next. The eager steps that precede a capture run on the stream
+        that captures, as PyTorch's CUDA-graph notes ask: libraries such as cuBLAS set up per-stream state on
+        first use, which must not happen during a capture.
+        """
+        current = torch.cuda.current_stream(self.device)
+        self._stream.wait_stream(current)
+        with torch.cuda.stream(self._stream):
+            yield
+        current.wait_stream(self._stream)
 
     def _update(self, batch: Batch) -> None:
         """One gradient step of every row on ``batch`` (with the RND bonus on its rows)."""
