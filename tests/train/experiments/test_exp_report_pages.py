@@ -10,8 +10,9 @@ from pathlib import Path
 import pytest
 
 from train.cli import main
+from train.experiments.catalog import EXPERIMENTS
 from train.experiments.report import make_report
-from train.experiments.report.figures import CONDITION_COLORS, condition_color
+from train.experiments.report.figures import CONDITION_COLORS, OTHER_COLORS, condition_color, condition_colors
 from train.experiments.report.pages import default_out
 from train.experiments.report.runs import REFERENCE_DIR
 
@@ -67,6 +68,17 @@ def test_one_colour_per_condition_everywhere():
     assert len(set(CONDITION_COLORS.values())) == len(CONDITION_COLORS)
     assert condition_color("dynamic-reset-free") == CONDITION_COLORS["dynamic-reset-free"]
     assert condition_color("rf-lr3e-4") == condition_color("rf-lr3e-4")
+
+
+def test_no_two_conditions_of_a_report_share_a_colour():
+    names = [c.name for c in EXPERIMENTS["settings"].conditions["salad"]]  # nine, hashed to seven colours
+    assert len(names) <= len(OTHER_COLORS)
+    colors = condition_colors(names + ["dynamic-episodic"])
+    assert len(set(colors.values())) == len(names) + 1
+    assert colors["dynamic-episodic"] == CONDITION_COLORS["dynamic-episodic"]
+    assert colors == condition_colors(reversed(names + ["dynamic-episodic"]))  # the order given does not matter
+    alone = {n: condition_color(n) for n in names}
+    assert sum(colors[n] == alone[n] for n in names) >= len(set(alone.values()))  # the first of each hash keeps it
 
 
 @pytest.mark.parametrize("name", ["headline", "headline-waypoint"])

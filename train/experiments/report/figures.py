@@ -1,7 +1,8 @@
 """The report's figures: learning curves per task and visitation heat-maps, written as PNG atomically.
 
-Every figure gives a condition the same colour (`condition_color`, keyed by the condition's name), and a
-figure's bytes depend only on what it shows (no date or software version in the file).
+Every figure of a report gives a condition the same colour (`condition_colors`, keyed by the condition's name
+and distinct within the report), and a figure's bytes depend only on what it shows (no date or software
+version in the file).
 """
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ from __future__ import annotations
 import math
 import textwrap
 import zlib
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -29,8 +31,8 @@ CONDITION_COLORS = {"static-episodic": "#1f77b4", "static-reset-free": "#d62728"
 red: the condition the paper finds fails)."""
 
 OTHER_COLORS = ("#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#637939",
-                "#8c6d31", "#843c39", "#7b4173", "#3182bd")
-"""Colours of other conditions, chosen by a stable hash of the condition's name."""
+                "#000000", "#98df8a", "#7b4173", "#3182bd")
+"""Colours of other conditions, chosen by a stable hash of the condition's name (see `condition_colors`)."""
 
 PNG_METADATA = {"Software": None}
 """PNG metadata of every figure: none (matplotlib would otherwise write its version)."""
@@ -39,9 +41,24 @@ LEGEND_INCHES_PER_CHAR = 0.065
 longest label leaves room for, so no label runs off the figure."""
 
 
+def condition_colors(names: Iterable[str]) -> dict[str, str]:
+    """The colour of each condition of one report: the headline conditions' own (`CONDITION_COLORS`), the
+    others the colour their name hashes to, or where an earlier name (in sorted order) has it, the next one
+    of `OTHER_COLORS` still free. So a condition keeps its colour wherever it appears beside no condition
+    whose colour it shares, and no two conditions of a report share one while colours are left.
+    """
+    names = sorted(set(names))
+    colors = {n: CONDITION_COLORS[n] for n in names if n in CONDITION_COLORS}
+    for name in (n for n in names if n not in colors):
+        start = zlib.crc32(name.encode()) % len(OTHER_COLORS)
+        ring = [OTHER_COLORS[(start + i) % len(OTHER_COLORS)] for i in range(len(OTHER_COLORS))]
+        colors[name] = next((c for c in ring if c not in colors.values()), ring[0])
+    return colors
+
+
 def condition_color(name: str) -> str:
-    """The colour of condition ``name``, the same in every figure of every report."""
-    return CONDITION_COLORS.get(name) or OTHER_COLORS[zlib.crc32(name.encode()) % len(OTHER_COLORS)]
+    """The colour of condition ``name`` shown alone (`condition_colors` of it alone)."""
+    return condition_colors([name])[name]
 
 
 def _pyplot():
@@ -75,7 +92,7 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     width = max(4.2 * ncols, 7.5)
     fig, axes = plt.subplots(nrows, ncols, figsize=(width, 3.4 * nrows + 1.2), squeeze=False,
                              layout="constrained")
-    color_of = {r.condition: condition_color(r.condition) for r in exp.runs}
+    color_of = condition_colors(r.condition for r in exp.runs)
     labels = {r.condition: set() for r in exp.runs}
     for r in exp.runs:
         labels[r.condition].add(r.label)
@@ -178,6 +195,7 @@ def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
     rows = [(r, snaps) for r, snaps in rows if snaps]
     if not rows:
         return None
+    color_of = condition_colors(r.condition for r in exp.runs)  # as in the report's curves
     plt = _pyplot()
     ncols = max(len(s) for _, s in rows)
     width = 2.3 * ncols + 3.2
@@ -191,7 +209,7 @@ def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
             ax.set_title(f"step {step:,}", fontsize=8)
             ax.set_xticks([])
             ax.set_yticks([])
-        axrow[0].set_ylabel(textwrap.fill(run.label, 24), fontsize=8, color=condition_color(run.condition))
+        axrow[0].set_ylabel(textwrap.fill(run.label, 24), fontsize=8, color=color_of[run.condition])
         for ax in axrow[len(snaps):]:
             ax.set_visible(False)
         bar = fig.colorbar(image, ax=list(axrow[:len(snaps)]), shrink=0.85, pad=0.02)
