@@ -5,6 +5,7 @@ per condition, and a page that leads with the shipped paper-budget panels.
 from __future__ import annotations
 
 import hashlib
+import shutil
 from pathlib import Path
 
 import pytest
@@ -57,6 +58,19 @@ def test_redrawing_a_shipped_result_is_byte_stable_and_leaves_it_alone(tmp_path)
     assert _digests(shipped) == before
     for text in ((first / "index.html").read_text(), (first / "report.md").read_text()):
         assert str(tmp_path) not in text and str(Path.cwd()) not in text and "/home/" not in text
+
+
+def test_two_directories_of_one_experiment_keep_their_own_figures(tmp_path):
+    results = tmp_path / "results"
+    for name in ("headline-waypoint", "headline-waypoint-1m"):  # the same experiment twice, as when one is continued
+        shutil.copytree(REFERENCE_DIR / "headline-waypoint", results / name,
+                        ignore=shutil.ignore_patterns("figures", "*.html", "*.md"))
+    out = tmp_path / "report"
+    make_report(results, videos=False, out=out)
+    figures = sorted(p.name for p in (out / "figures").glob("headline*_curves.png"))
+    assert figures == ["headline-waypoint-1m_curves.png", "headline-waypoint_curves.png"]
+    page = (out / "report.md").read_text()
+    assert all(f"figures/{name}" in page for name in figures)
 
 
 def test_a_shipped_result_is_redrawn_outside_the_tracked_folder():

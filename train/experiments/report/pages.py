@@ -6,7 +6,8 @@ and writes into DIR:
 * ``figures/<experiment>_curves.png``: learning curves, one panel per task, mean and 95% bootstrap CI
   over seeds against environment steps, the paper's reported values as dotted lines;
 * ``figures/<experiment>_<task>_heatmaps.png``: cumulative visitation counts (summed over seeds) at four
-  points of training, for experiments that ask for them (Fig. 2, 9, 10);
+  points of training, for experiments that ask for them (Fig. 2, 9, 10); a second directory of the same
+  experiment in one report names its figures after itself (`figure_stems`);
 * ``report.md``: final success (or return) per condition, mean ± 95% CI over seeds at the last
   evaluation, beside the paper's numbers (``assets/paper/*.json``; ≈ marks values read from a figure or
   quoted in the text, = values from a table), and Table 1 measurements;
@@ -73,22 +74,38 @@ def load_all(source: Path) -> list[ExperimentResults]:
     return [load_experiment(path) for path in find_experiment_dirs(source)]
 
 
+def figure_stems(experiments: Sequence[ExperimentResults]) -> list[str]:
+    """The name each experiment's figures start with: the experiment's own, or where an earlier directory of
+    the report already has it (say a run continued in ``settings-1m`` beside ``settings``), the directory's
+    name, numbered if that is taken too, so no figure overwrites another.
+    """
+    stems: list[str] = []
+    for exp in experiments:
+        stem = exp.name if exp.name not in stems else exp.path.name
+        number = 2
+        while stem in stems:
+            stem, number = f"{exp.name}-{number}", number + 1
+        stems.append(stem)
+    return stems
+
+
 def build_sections(source: Path, out: Path, videos: bool | None = None) -> list[Section]:
     """Read every experiment under ``source``, draw its figures into ``out/figures`` and compute its tables."""
     paper_all = load_paper()
     sections = []
-    for exp in load_all(source):
+    experiments = load_all(source)
+    for exp, stem in zip(experiments, figure_stems(experiments), strict=True):
         paper = paper_all.get(exp.name, {})
         if videos or (videos is None and exp.info.get("videos")):
             render_missing_videos(exp)
         figures = out / "figures"
         single = exp.info.get("budget") == "ecorl train"
         reference = None if single else load_reference(exp)
-        curves = (plot_seed_curves(exp, figures / f"{exp.name}_curves.png") if single
-                  else plot_curves(exp, paper, figures / f"{exp.name}_curves.png", reference))
+        curves = (plot_seed_curves(exp, figures / f"{stem}_curves.png") if single
+                  else plot_curves(exp, paper, figures / f"{stem}_curves.png", reference))
         heatmaps = []
         if exp.info.get("heatmaps"):
-            heatmaps = [p for t in exp.tasks if (p := plot_heatmaps(exp, t, figures / f"{exp.name}_{t}_heatmaps.png"))]
+            heatmaps = [p for t in exp.tasks if (p := plot_heatmaps(exp, t, figures / f"{stem}_{t}_heatmaps.png"))]
         tasks_run = set(exp.tasks)
         claims = [c for c in paper.get("claims", []) if c.get("task") in (None, *tasks_run)]
         sections.append(Section(exp, curves, heatmaps, final_rows(exp, paper), measurement_rows(exp, paper),
