@@ -28,6 +28,7 @@ SMOKE_TASKS = {
     "headline": None,
     "headline-waypoint": None,
     "salad-gap": None,
+    "lr-sweep": None,
     "episodic-vs-reset-free": None,
     "dynamism": ["foodcollector"],
     "dynamism-sweep": ["salad"],

@@ -214,6 +214,24 @@ def _gap_conditions() -> tuple[Condition, ...]:
     )
 
 
+LR_SWEEP = (("1e-5", 1e-5), ("3e-5", 3e-5), ("1e-4", 1e-4), ("3e-4", 3e-4), ("1e-3", 1e-3))
+"""The released salad script's learning rates (its names and values), the paper's Fig. 7 sweep."""
+
+
+def _lr_sweep_conditions() -> tuple[Condition, ...]:
+    """The released salad sweep (Fig. 7): each rate, waypoint reward, episodic (H 100) and non-episodic.
+
+    Two rates of each mode share every setting with arms run before (3e-4: the settings study's
+    ``ep-h100-waypoint`` and ``rf-waypoint``; 1e-4: the salad-gap study's ``ep-lr1e-4`` and ``rf-lr1e-4``).
+    """
+    p = DYNAMIC_P["salad"]
+    modes = (("ep", "episodic H 100", {"reset_free": False, "horizon": 100}),
+             ("rf", "non-episodic", {"reset_free": True}))
+    return tuple(Condition(f"{mode}-lr{name}", f"{label}, waypoint, lr {name}",
+                           {"dynamism": p, "reward": "waypoint", "lr": lr, **knobs})
+                 for mode, label, knobs in modes for name, lr in LR_SWEEP)
+
+
 def _salad_experiments() -> list[Experiment]:
     """The salad-only experiments: the headline, the settings study and Fig. 2."""
     salad_dyn = _dynamism_conditions("salad")
@@ -250,6 +268,14 @@ def _salad_experiments() -> list[Experiment]:
             "stored as terminals (the original's rule). Its paper budget is the study's: 10 seeds x 500 000 "
             "steps per arm.",
             {"salad": _gap_conditions()}, {"salad": 500_000}, 10,
+            {"smoke": SMOKE, "quick": _quick(3, 120_000)}, milestones=(250_000, 500_000)),
+        Experiment(
+            "lr-sweep", "Fig. 7", "The learning-rate sweep (salad)",
+            "The released salad script's sweep, which the paper says chose its learning rate: lr 1e-5, 3e-5, "
+            "1e-4, 3e-4 and 1e-3 on dynamic salad (p = 0.1) with the waypoint reward, episodic (horizon 100) "
+            "and non-episodic. The rates 1e-4 and 3e-4 repeat arms of 'salad-gap' and 'settings'. Its paper "
+            "budget is the settings study's: 10 seeds x 500 000 steps per arm.",
+            {"salad": _lr_sweep_conditions()}, {"salad": 500_000}, 10,
             {"smoke": SMOKE, "quick": _quick(3, 120_000)}, milestones=(250_000, 500_000)),
         Experiment(
             "episodic-vs-reset-free", "Fig. 2", "Episodic vs non-episodic learning (static salad)",

@@ -189,3 +189,20 @@ def test_headline_waypoint_is_the_headline_with_the_released_reward():
         long = job_config(exp, "salad", exp.conditions["salad"][3], exp.budget("paper"))
         assert exp.conditions["salad"][3].name == "dynamic-reset-free"
         assert long.replace(steps=study.run.steps) == study, arm_name
+
+
+def test_lr_sweep_repeats_the_arms_it_shares_a_rate_with():
+    """Fig. 7's sweep spans the released script's five rates in both modes; its 1e-4 and 3e-4 arms build the
+    very configs of the salad-gap and settings arms they repeat, so those runs stand for them.
+    """
+    sweep = get_experiment("lr-sweep")
+    arms = {c.name: c for c in sweep.conditions["salad"]}
+    assert sorted({job_config(sweep, "salad", c, sweep.budget("paper")).dqn.lr for c in arms.values()}) == [
+        1e-5, 3e-5, 1e-4, 3e-4, 1e-3]
+    for name, (other, other_arm) in {"ep-lr1e-4": ("salad-gap", "ep-lr1e-4"), "rf-lr1e-4": ("salad-gap", "rf-lr1e-4"),
+                                     "ep-lr3e-4": ("settings", "ep-h100-waypoint"),
+                                     "rf-lr3e-4": ("settings", "rf-waypoint")}.items():
+        exp = get_experiment(other)
+        arm = next(c for c in exp.conditions["salad"] if c.name == other_arm)
+        assert job_config(sweep, "salad", arms[name], sweep.budget("paper")) == \
+            job_config(exp, "salad", arm, exp.budget("paper")), name
