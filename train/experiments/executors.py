@@ -6,8 +6,10 @@ a checkpoint, and a worker whose sweep process died exits instead of taking anot
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -41,13 +43,22 @@ def _init_worker(stop, parent: int) -> None:
 PARENT_POLL_S = 1.0
 """How often a local worker checks that its sweep still lives."""
 
+ORPHAN_GRACE_S = 300.0
+"""How long a worker whose sweep died may take to stop cleanly (finish its epoch, write its checkpoint); past
+it, the worker prints every thread's stack to stderr and exits, and the run's last checkpoint stands."""
+
 
 def _watch_parent() -> None:
     """In a worker: once the sweep is gone, SIGTERM to itself (a clean stop), unless the kernel's parent-death
     signal already asked for one; some systems lack that signal, and a second SIGTERM would cut the stop short.
+
+    A stop that hangs (a CI host once kept a worker waiting on a lock for minutes after its sweep was killed)
+    ends at `ORPHAN_GRACE_S`: faulthandler's own thread, which needs no lock of the interpreter's, dumps the
+    stacks and exits, so no orphan outlives its sweep for long.
     """
     while not _parent_gone():
         time.sleep(PARENT_POLL_S)
+    faulthandler.dump_traceback_later(ORPHAN_GRACE_S, exit=True, file=sys.stderr)
     time.sleep(2 * PARENT_POLL_S)  # room for the kernel's signal to arrive and be handled first
     if not stop_requested():
         os.kill(os.getpid(), signal.SIGTERM)
