@@ -191,6 +191,20 @@ def test_headline_waypoint_is_the_headline_with_the_released_reward():
         assert long.replace(steps=study.run.steps) == study, arm_name
 
 
+def test_the_salad_dynamism_sweep_repeats_fig_4s_non_episodic_pair():
+    """Fig. 6 (left)'s p 0 and p 0.1 build the very configs of Fig. 4's non-episodic salad runs, so the shipped
+    `headline` runs stand for them.
+    """
+    sweep, headline = get_experiment("dynamism-sweep"), get_experiment("headline")
+    arms = {c.name: c for c in sweep.conditions["salad"]}
+    for name, other in {"p0": "static-reset-free", "p0.1": "dynamic-reset-free"}.items():
+        arm = next(c for c in headline.conditions["salad"] if c.name == other)
+        assert job_config(sweep, "salad", arms[name], sweep.budget("paper")) == \
+            job_config(headline, "salad", arm, headline.budget("paper")), name
+    assert job_config(sweep, "salad", arms["p0.05"], sweep.budget("paper")) != \
+        job_config(headline, "salad", arm, headline.budget("paper"))
+
+
 def test_lr_sweep_repeats_the_arms_it_shares_a_rate_with():
     """Fig. 7's sweep spans the released script's five rates in both modes; its 1e-4 and 3e-4 arms build the
     very configs of the salad-gap and settings arms they repeat, so those runs stand for them.
