@@ -191,11 +191,13 @@ def test_headline_waypoint_is_the_headline_with_the_released_reward():
         assert long.replace(steps=study.run.steps) == study, arm_name
 
 
-def test_the_salad_dynamism_sweep_repeats_fig_4s_non_episodic_pair():
-    """Fig. 6 (left)'s p 0 and p 0.1 build the very configs of Fig. 4's non-episodic salad runs, so the shipped
-    `headline` runs stand for them.
+@pytest.mark.parametrize("sweep_name, fig4", [("dynamism-sweep", "headline"),
+                                               ("dynamism-sweep-waypoint", "headline-waypoint")])
+def test_the_salad_dynamism_sweep_repeats_fig_4s_non_episodic_pair(sweep_name, fig4):
+    """Fig. 6 (left)'s p 0 and p 0.1 build the very configs of Fig. 4's non-episodic salad runs of the same
+    reward, so the shipped Fig. 4 runs stand for them.
     """
-    sweep, headline = get_experiment("dynamism-sweep"), get_experiment("headline")
+    sweep, headline = get_experiment(sweep_name), get_experiment(fig4)
     arms = {c.name: c for c in sweep.conditions["salad"]}
     for name, other in {"p0": "static-reset-free", "p0.1": "dynamic-reset-free"}.items():
         arm = next(c for c in headline.conditions["salad"] if c.name == other)
