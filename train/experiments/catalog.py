@@ -285,6 +285,20 @@ def _salad_experiments() -> list[Experiment]:
     ]
 
 
+def _dynamism_sweep_waypoint() -> Experiment:
+    """Fig. 6 (left)'s salad levels under the released salad script's waypoint reward."""
+    return Experiment(
+        "dynamism-sweep-waypoint", "Fig. 6 (left), released script's reward", "How much dynamism (salad), "
+        "waypoint reward",
+        "The salad half of 'dynamism-sweep' trained with the reward of the released salad script (+1 for "
+        "every ingredient picked up, farmable; +100 for the salad), whose sweep lists these levels (all but "
+        "0.1 commented out). Its p = 0 and p = 0.1 arms are the configs of 'headline-waypoint''s "
+        "non-episodic pair.",
+        {"salad": _with_reward(_sweep_conditions("salad", (0.0, 0.01, 0.05, 0.1, 0.5)), "waypoint",
+                               "waypoint reward")},
+        {"salad": 1_000_000}, 10, {"smoke": SMOKE, "quick": _quick(3, 100_000)})
+
+
 def _task_experiments() -> list[Experiment]:
     """The experiments over several tasks: Fig. 4, 5, 6, 8-10 and Table 1."""
     shaping_steps = dict.fromkeys(PAPER_TASKS, 1_250_000)
@@ -302,16 +316,7 @@ def _task_experiments() -> list[Experiment]:
              "hunting": _sweep_conditions("hunting", (0.0, 0.1, 0.2, 0.4, 0.6))},
             {"salad": 1_000_000, "hunting": 1_500_000}, 10,
             {"smoke": SMOKE, "quick": _quick(3, 100_000)}),
-        Experiment(
-            "dynamism-sweep-waypoint", "Fig. 6 (left), released script's reward", "How much dynamism (salad), "
-            "waypoint reward",
-            "The salad half of 'dynamism-sweep' trained with the reward of the released salad script (+1 for "
-            "every ingredient picked up, farmable; +100 for the salad), whose sweep lists these levels (all but "
-            "0.1 commented out). Its p = 0 and p = 0.1 arms are the configs of 'headline-waypoint''s "
-            "non-episodic pair.",
-            {"salad": _with_reward(_sweep_conditions("salad", (0.0, 0.01, 0.05, 0.1, 0.5)), "waypoint",
-                                   "waypoint reward")},
-            {"salad": 1_000_000}, 10, {"smoke": SMOKE, "quick": _quick(3, 100_000)}),
+        _dynamism_sweep_waypoint(),
         Experiment(
             "shaping", "Fig. 5", "Environment shaping vs reward shaping",
             "Non-episodic training with environment shaping (sparse or subgoal reward), distance-based or "
