@@ -265,8 +265,10 @@ def test_a_signal_stops_an_endless_evaluation_within_seconds(tmp_path):
         assert proc.poll() is None
         proc.send_signal(signal.SIGTERM)
         began = time.monotonic()
-        code = proc.wait(timeout=10)
-        assert time.monotonic() - began < 3
+        # the evaluation never ends, so any stop is the signal's doing; the bound is loose because a loaded
+        # CI machine once took 3.4 s (the signal is checked about once a second inside an evaluation)
+        code = proc.wait(timeout=60)
+        assert time.monotonic() - began < 30
     finally:
         proc.kill()
     assert code == 130

@@ -42,6 +42,9 @@ def test_paper_values_and_their_marks():
     assert [x["mean"] for x in table] == [6.2, 7.6, 7.9, 8.4, 8.6] and not any(x["approximate"] for x in table)
     assert any("RND" in c["text"] for c in paper["rnd"]["claims"])
     assert not any("RND" in c["text"] for c in paper["dynamism-sweep"]["claims"])
+    # a claim naming a list of experiments speaks of each of them, and of no other
+    sweep_claims = [c["text"] for c in paper["dynamism-sweep"]["claims"]]
+    assert len(sweep_claims) == 2 and [c["text"] for c in paper["dynamism-sweep-waypoint"]["claims"]] == sweep_claims
 
 
 def _fake_run(run_dir, seeds, steps, success, grid=(8, 8), loss=lambda i, k: 1.0, max_q=lambda i, k: 50.0,
@@ -75,8 +78,8 @@ def test_report_on_synthetic_runs(tmp_path):
     assert names == ["episodic-vs-reset-free_curves.png", "episodic-vs-reset-free_salad_heatmaps.png",
                      "index.html", "report.md"]
     md = (root / "report.md").read_text()
-    assert "| salad | static, episodic | 10.0% [" in md and "| 0 / 3 | 0 / 3 | 3 | 50000 | ≈ 12% (Fig. 2) |" in md
-    assert "| salad | static, non-episodic | 0.0% [0.0, 0.0] | 0 / 3 | 0 / 3 | 3 | 20000 | ≈ 0% (Fig. 2) |" in md
+    assert "| salad | static, episodic | 10.0% [" in md and "| 0 / 3 | — | 0 / 3 | 3 | 50000 | ≈ 12% (Fig. 2) |" in md
+    assert "| salad | static, non-episodic | 0.0% [0.0, 0.0] | 0 / 3 | — | 0 / 3 | 3 | 20000 | ≈ 0% (Fig. 2) |" in md
     assert "2000 resamples, generator seed 0" in md and "seeds diverged" in md
     assert "1 run(s) not finished yet" in md
     steps_read, values = read_metrics(root / exp.name / "salad" / "static-episodic" / "metrics.csv", "success")
@@ -111,7 +114,7 @@ def test_report_tabulates_milestones_with_the_seeds_that_learned(tmp_path):
     row = next(line for line in md.splitlines() if line.startswith("| salad | non-episodic, lr 3e-4 |")
                and "learned" in line)
     # the evaluation closest to 250 000 (250 200, not 245 200); 0.2 is not above the threshold
-    assert "| 36.7% [" in row and row.endswith("learned 1 / 3; diverged 0 | — |"), row
+    assert "| 36.7% [" in row and row.endswith("learned 1 / 3 at 90%; diverged 0 | — |"), row
 
 
 def test_quick_curves_are_drawn_over_the_shipped_paper_budget_runs(tmp_path, monkeypatch):
@@ -182,3 +185,13 @@ def test_divergence_is_marked_and_old_metrics_without_max_q_still_load(tmp_path)
 
     assert format_diverged(new_run.diverged(), new_run.seed_ids) == "2 / 3 (seeds 1, 2)"
     assert format_diverged(old_run.diverged(), old_run.seed_ids) == "1 / 3 (seed 1)"
+
+
+def test_learned_level_gives_the_learned_seeds_range_and_mean():
+    from train.experiments.report.stats import learned_level
+
+    values = np.array([0.28, 0.86, 0.10, 0.75, 0.0])  # three seeds above the 20 % threshold
+    assert learned_level(values, "success") == "28–86% (mean 63%)"
+    assert learned_level(np.array([0.05, 0.56]), "success") == "56%"
+    assert learned_level(np.array([0.05, 0.2]), "success") == "—"  # exactly at the threshold is not learned
+    assert learned_level(np.array([3.0, 9.0]), "return") == "—"  # returns have no learning threshold

@@ -21,10 +21,17 @@ def load_paper(paper_dir: Path = PAPER_DIR) -> dict[str, dict[str, list[dict[str
             entry = out.setdefault(exp, {"values": [], "claims": [], "sources": []})
             entry["values"] += [{**v, "figure": data["figure"]} for v in data.get("values", [])]
             entry["claims"] += [{**c, "figure": data["figure"]} for c in data.get("claims", [])
-                                if c.get("experiment", exp) == exp]
+                                if _claim_applies(c, exp)]
             entry["sources"].append({"figure": data["figure"], "source": data.get("source", ""),
                                      "note": data.get("note", "")})
     return out
+
+
+def _claim_applies(claim: dict[str, Any], exp: str) -> bool:
+    """Whether a claim speaks of experiment ``exp``: its ``experiment`` (a name or a list of names), or every
+    experiment of its file when it names none."""
+    scope = claim.get("experiment", exp)
+    return exp in scope if isinstance(scope, list) else scope == exp
 
 
 def paper_value(paper: dict, task: str, condition: str) -> dict[str, Any] | None:

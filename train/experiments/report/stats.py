@@ -92,6 +92,18 @@ def summarize(values: np.ndarray, metric: str) -> tuple[str, str]:
     return ours, learned
 
 
+def learned_level(values: np.ndarray, metric: str) -> str:
+    """The final success of the seeds that learned: '28-86% (mean 63%)', one value alone, '—' when none
+    learned or for returns (no learning threshold)."""
+    values = np.asarray(values, dtype=np.float64)
+    level = values[values > LEARNED] * 100.0
+    if metric != "success" or level.size == 0:
+        return "—"
+    if level.size == 1:
+        return f"{level[0]:.0f}%"
+    return f"{level.min():.0f}–{level.max():.0f}% (mean {level.mean():.0f}%)"
+
+
 def format_diverged(flags: np.ndarray, seeds: np.ndarray) -> str:
     """'d / S', with the diverged seeds' numbers when there are any: '2 / 10 (seeds 3, 7)'."""
     flags = np.asarray(flags, dtype=bool)

@@ -8,7 +8,7 @@ import numpy as np
 
 from train.experiments.report.paper import format_paper, paper_value
 from train.experiments.report.runs import ExperimentResults
-from train.experiments.report.stats import LEARNED, format_diverged, metric_scale, summarize
+from train.experiments.report.stats import LEARNED, format_diverged, learned_level, metric_scale, summarize
 from train.experiments.table1 import format_value
 
 MILESTONE_TOLERANCE = 5_000
@@ -16,7 +16,8 @@ MILESTONE_TOLERANCE = 5_000
 
 
 FINAL_COLUMNS = (("task", "task"), ("condition", "condition"), ("ours", "ours: final mean [95% CI]"),
-                 ("learned", f"seeds learned (> {LEARNED:.0%})"), ("diverged", "seeds diverged"), ("seeds", "seeds"),
+                 ("learned", f"seeds learned (> {LEARNED:.0%})"),
+                 ("level", "learned seeds' success"), ("diverged", "seeds diverged"), ("seeds", "seeds"),
                  ("step", "at step"),
                  ("paper", "paper"))
 
@@ -34,7 +35,8 @@ def final_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
         ours, learned = summarize(run.values[-1], run.metric)
         scale, unit = metric_scale(run.metric)
         rows.append({"task": run.task, "condition": run.label, "metric": run.metric, "ours": ours,
-                     "learned": learned, "diverged": format_diverged(run.diverged(), run.seed_ids),
+                     "learned": learned, "level": learned_level(run.values[-1], run.metric),
+                     "diverged": format_diverged(run.diverged(), run.seed_ids),
                      "seeds": run.seeds, "step": int(run.steps[-1]), "done": run.done,
                      "paper": format_paper(paper_value(paper, run.task, run.condition), scale, unit)})
     return rows
@@ -59,6 +61,8 @@ def milestone_rows(exp: ExperimentResults) -> list[dict[str, Any]]:
             if distance.size and distance.min() <= MILESTONE_TOLERANCE:
                 at = int(distance.argmin())
                 ours, learned = summarize(run.values[at], run.metric)
+                level = learned_level(run.values[at], run.metric)
+                learned += "" if level == "—" else f" at {level}"
                 row[f"at{m}"] = f"{ours}; learned {learned}; diverged {int(run.diverged(at).sum())}"
             else:
                 row[f"at{m}"] = "—"
