@@ -31,6 +31,7 @@ SMOKE_TASKS = {
     "lr-sweep": None,
     "episodic-vs-reset-free": None,
     "dynamism": ["foodcollector"],
+    "dynamism-waypoint": ["hunting"],
     "dynamism-sweep": ["salad"],
     "dynamism-sweep-waypoint": None,
     "shaping": ["hunting"],

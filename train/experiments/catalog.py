@@ -54,7 +54,7 @@ from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
 from train.tasks import TASKS
 
 __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "SHAPING_BASE",
-           "SHAPING_SCHEDULE", "SMOKE", "TUNED", "Budget", "Condition", "Experiment", "get_experiment", "job_config"]
+           "SHAPING_SCHEDULE", "SMOKE", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition", "Experiment", "get_experiment", "job_config"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -299,6 +299,23 @@ def _dynamism_sweep_waypoint() -> Experiment:
         {"salad": 1_000_000}, 10, {"smoke": SMOKE, "quick": _quick(3, 100_000)})
 
 
+WAYPOINT_TASKS = ("hunting", "scavenging", "factory")
+"""The Fig. 4 tasks whose released scripts train with the waypoint reward besides the text's sparse one (the
+salad's is `headline-waypoint`; the food collector has only its sparse reward)."""
+
+
+def _dynamism_waypoint() -> Experiment:
+    """Fig. 4's other grid panels under the released scripts' waypoint reward."""
+    return Experiment(
+        "dynamism-waypoint", "Fig. 4, released scripts' reward", "Dynamism and resets, waypoint reward",
+        "The 'dynamism' conditions of hunting, scavenging and factory trained with the reward of the released "
+        "scripts (+1 for every intermediate object picked up or made, farmable; +100 on completion) instead "
+        "of the paper text's sparse reward; the released hunting script trains no sparse arm at all. Salad's "
+        "is 'headline-waypoint'.",
+        {t: _with_reward(_dynamism_conditions(t), "waypoint", "waypoint reward") for t in WAYPOINT_TASKS},
+        {t: PAPER_STEPS[t] for t in WAYPOINT_TASKS}, 10, {"smoke": SMOKE, "quick": _quick(3, 150_000)})
+
+
 def _task_experiments() -> list[Experiment]:
     """The experiments over several tasks: Fig. 4, 5, 6, 8-10 and Table 1."""
     shaping_steps = dict.fromkeys(PAPER_TASKS, 1_250_000)
@@ -308,6 +325,7 @@ def _task_experiments() -> list[Experiment]:
             "Per task: {static, dynamic} x {episodic, non-episodic}; evaluation on the static episodic test MDP.",
             {t: _dynamism_conditions(t) for t in PAPER_TASKS}, {t: PAPER_STEPS[t] for t in PAPER_TASKS}, 10,
             {"smoke": SMOKE, "quick": _quick(3, 150_000)}),
+        _dynamism_waypoint(),
         Experiment(
             "dynamism-sweep", "Fig. 6 (left, middle)", "How much dynamism",
             "Non-episodic training as the dynamic event probability grows: salad resource probability, hunting "

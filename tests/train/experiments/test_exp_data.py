@@ -121,13 +121,16 @@ def test_paper_numbers_name_real_experiments_and_conditions():
     for path in files:
         data = json.loads(path.read_text())
         assert data["figure"] and data["source"]
-        for exp_name in data["experiments"]:
-            exp = get_experiment(exp_name)
-            for v in data["values"]:
-                assert isinstance(v["approximate"], bool) and v["where"]
-                seen_exact += not v["approximate"]
-                seen_approx += v["approximate"]
-                assert v["task"] in exp.conditions, (path.name, v)
+        experiments = [get_experiment(name) for name in data["experiments"]]
+        for v in data["values"]:
+            assert isinstance(v["approximate"], bool) and v["where"]
+            seen_exact += not v["approximate"]
+            seen_approx += v["approximate"]
+            # a value speaks of each listed experiment that trains its task (Fig. 4's salad numbers are not
+            # `dynamism-waypoint`'s, which has no salad), and of at least one
+            having = [exp for exp in experiments if v["task"] in exp.conditions]
+            assert having, (path.name, v)
+            for exp in having:
                 names = [c.name for c in exp.conditions[v["task"]]]
                 if "measure" in v:
                     assert v["measure"] in names
@@ -205,6 +208,35 @@ def test_the_salad_dynamism_sweep_repeats_fig_4s_non_episodic_pair(sweep_name, f
             job_config(headline, "salad", arm, headline.budget("paper")), name
     assert job_config(sweep, "salad", arms["p0.05"], sweep.budget("paper")) != \
         job_config(headline, "salad", arm, headline.budget("paper"))
+
+
+def test_the_hunting_dynamism_sweep_repeats_fig_4s_non_episodic_pair():
+    """Fig. 6 (middle)'s p 0 and p 0.2 build the very configs of Fig. 4's non-episodic hunting runs, so the
+    shipped Fig. 4 runs stand for them; the other levels differ.
+    """
+    sweep, fig4 = get_experiment("dynamism-sweep"), get_experiment("dynamism")
+    arms = {c.name: c for c in sweep.conditions["hunting"]}
+    pair = {c.name: c for c in fig4.conditions["hunting"]}
+    config = lambda exp, cond: job_config(exp, "hunting", cond, exp.budget("paper"))  # noqa: E731
+    for name, other in {"p0": "static-reset-free", "p0.2": "dynamic-reset-free"}.items():
+        assert config(sweep, arms[name]) == config(fig4, pair[other]), name
+    for name in ("p0.1", "p0.4", "p0.6"):
+        assert all(config(sweep, arms[name]) != config(fig4, c) for c in pair.values()), name
+
+
+def test_dynamism_waypoint_is_fig_4_with_the_released_reward():
+    """Each condition of `dynamism-waypoint` is the `dynamism` condition of the same name and task with the
+    waypoint reward, and nothing else changed."""
+    waypoint, fig4 = get_experiment("dynamism-waypoint"), get_experiment("dynamism")
+    assert waypoint.tasks == ("hunting", "scavenging", "factory")
+    for task in waypoint.tasks:
+        ours = {c.name: c for c in waypoint.conditions[task]}
+        assert list(ours) == [c.name for c in fig4.conditions[task]]
+        for cond in fig4.conditions[task]:
+            plain = job_config(fig4, task, cond, fig4.budget("paper"))
+            released = job_config(waypoint, task, ours[cond.name], waypoint.budget("paper"))
+            assert plain.env.reward == "sparse" and released.env.reward == "waypoint"
+            assert released.replace(reward="sparse") == plain, (task, cond.name)
 
 
 def test_lr_sweep_repeats_the_arms_it_shares_a_rate_with():
