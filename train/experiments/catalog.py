@@ -54,7 +54,8 @@ from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
 from train.tasks import TASKS
 
 __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "SHAPING_BASE",
-           "SHAPING_SCHEDULE", "SMOKE", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition", "Experiment", "get_experiment", "job_config"]
+           "SHAPING_SCHEDULE", "SMOKE", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition", "Experiment",
+           "get_experiment", "job_config"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""

@@ -226,7 +226,8 @@ def test_the_hunting_dynamism_sweep_repeats_fig_4s_non_episodic_pair():
 
 def test_dynamism_waypoint_is_fig_4_with_the_released_reward():
     """Each condition of `dynamism-waypoint` is the `dynamism` condition of the same name and task with the
-    waypoint reward, and nothing else changed."""
+    waypoint reward, and nothing else changed.
+    """
     waypoint, fig4 = get_experiment("dynamism-waypoint"), get_experiment("dynamism")
     assert waypoint.tasks == ("hunting", "scavenging", "factory")
     for task in waypoint.tasks:

@@ -29,7 +29,8 @@ def load_paper(paper_dir: Path = PAPER_DIR) -> dict[str, dict[str, list[dict[str
 
 def _claim_applies(claim: dict[str, Any], exp: str) -> bool:
     """Whether a claim speaks of experiment ``exp``: its ``experiment`` (a name or a list of names), or every
-    experiment of its file when it names none."""
+    experiment of its file when it names none.
+    """
     scope = claim.get("experiment", exp)
     return exp in scope if isinstance(scope, list) else scope == exp
 

@@ -94,7 +94,8 @@ def summarize(values: np.ndarray, metric: str) -> tuple[str, str]:
 
 def learned_level(values: np.ndarray, metric: str) -> str:
     """The final success of the seeds that learned: '28-86% (mean 63%)', one value alone, '—' when none
-    learned or for returns (no learning threshold)."""
+    learned or for returns (no learning threshold).
+    """
     values = np.asarray(values, dtype=np.float64)
     level = values[values > LEARNED] * 100.0
     if metric != "success" or level.size == 0:
