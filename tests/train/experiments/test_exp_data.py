@@ -194,34 +194,27 @@ def test_headline_waypoint_is_the_headline_with_the_released_reward():
         assert long.replace(steps=study.run.steps) == study, arm_name
 
 
-@pytest.mark.parametrize("sweep_name, fig4", [("dynamism-sweep", "headline"),
-                                               ("dynamism-sweep-waypoint", "headline-waypoint")])
-def test_the_salad_dynamism_sweep_repeats_fig_4s_non_episodic_pair(sweep_name, fig4):
-    """Fig. 6 (left)'s p 0 and p 0.1 build the very configs of Fig. 4's non-episodic salad runs of the same
-    reward, so the shipped Fig. 4 runs stand for them.
-    """
-    sweep, headline = get_experiment(sweep_name), get_experiment(fig4)
-    arms = {c.name: c for c in sweep.conditions["salad"]}
-    for name, other in {"p0": "static-reset-free", "p0.1": "dynamic-reset-free"}.items():
-        arm = next(c for c in headline.conditions["salad"] if c.name == other)
-        assert job_config(sweep, "salad", arms[name], sweep.budget("paper")) == \
-            job_config(headline, "salad", arm, headline.budget("paper")), name
-    assert job_config(sweep, "salad", arms["p0.05"], sweep.budget("paper")) != \
-        job_config(headline, "salad", arm, headline.budget("paper"))
+SALAD_PAIR = {"p0": "static-reset-free", "p0.1": "dynamic-reset-free"}
 
 
-def test_the_hunting_dynamism_sweep_repeats_fig_4s_non_episodic_pair():
-    """Fig. 6 (middle)'s p 0 and p 0.2 build the very configs of Fig. 4's non-episodic hunting runs, so the
-    shipped Fig. 4 runs stand for them; the other levels differ.
+@pytest.mark.parametrize("sweep_name, fig4, task, same", [
+    ("dynamism-sweep", "headline", "salad", SALAD_PAIR),
+    ("dynamism-sweep-waypoint", "headline-waypoint", "salad", SALAD_PAIR),
+    ("dynamism-sweep", "dynamism", "hunting", {"p0": "static-reset-free", "p0.2": "dynamic-reset-free"}),
+])
+def test_the_dynamism_sweep_repeats_fig_4s_non_episodic_pair(sweep_name, fig4, task, same):
+    """Fig. 6's p 0 and its task's Fig. 4 dynamism build the very configs of Fig. 4's non-episodic runs of the
+    same task and reward, so the shipped Fig. 4 runs stand for them; every other level differs from all of
+    Fig. 4's conditions.
     """
-    sweep, fig4 = get_experiment("dynamism-sweep"), get_experiment("dynamism")
-    arms = {c.name: c for c in sweep.conditions["hunting"]}
-    pair = {c.name: c for c in fig4.conditions["hunting"]}
-    config = lambda exp, cond: job_config(exp, "hunting", cond, exp.budget("paper"))  # noqa: E731
-    for name, other in {"p0": "static-reset-free", "p0.2": "dynamic-reset-free"}.items():
-        assert config(sweep, arms[name]) == config(fig4, pair[other]), name
-    for name in ("p0.1", "p0.4", "p0.6"):
-        assert all(config(sweep, arms[name]) != config(fig4, c) for c in pair.values()), name
+    sweep, panel = get_experiment(sweep_name), get_experiment(fig4)
+    ours = {c.name: job_config(sweep, task, c, sweep.budget("paper")) for c in sweep.conditions[task]}
+    theirs = {c.name: job_config(panel, task, c, panel.budget("paper")) for c in panel.conditions[task]}
+    for name, config in ours.items():
+        if name in same:
+            assert config == theirs[same[name]], name
+        else:
+            assert all(config != other for other in theirs.values()), name
 
 
 def test_dynamism_waypoint_is_fig_4_with_the_released_reward():
