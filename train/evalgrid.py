@@ -45,7 +45,8 @@ def needed_in_first_view(task: str, test_kwargs: dict[str, Any], seeds: Sequence
     of `NEEDED_FIRST` in the agent's view.
     """
     if task not in NEEDED_FIRST:
-        raise ValueError(f"the first-view split knows the needs of {', '.join(NEEDED_FIRST)} only, not {task!r}")
+        raise ValueError(f"the first-view split knows the needs of {', '.join(NEEDED_FIRST)} only, not {task!r}; "
+                         f"evaluate without it (split=False)")
     env = make_vector_env(get_task(task).env_id, len(seeds), test_kwargs)
     try:
         obs, _ = env.reset(seed=[int(s) for s in seeds])

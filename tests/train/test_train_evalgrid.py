@@ -61,3 +61,9 @@ def test_grid_rows_and_csv(tmp_path, cli):
     assert "nothing needed in first view" in proc.stdout
     table = list(csv.DictReader(out.open()))
     assert len(table) == 2 * 2 * 3 and {r["layouts"] for r in table} == {"validation", "fresh"}
+
+
+def test_grid_of_a_task_without_a_first_view_need_is_not_split(cli):
+    proc = cli("evaluate", str(shipped_policy("hunting")), "--epsilons", "0", "--horizons", "5", "--rollouts", "3")
+    rows = [line for line in proc.stdout.splitlines() if line.startswith("validation")]
+    assert len(rows) == 1 and " all " in rows[0]

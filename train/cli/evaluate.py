@@ -23,13 +23,14 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="exploration during evaluation (default: the run's, 0.1 in the paper)")
     grid = parser.add_argument_group(
         "evaluation grid", "any of these options tabulates success at every (layouts, horizon, epsilon), split by "
-        "whether an object needed first (salad: an ingredient) is in the first view")
+        "whether an object needed first (salad: an ingredient) is in the first view, on the tasks that define one")
     grid.add_argument("--epsilons", type=probability, nargs="+", metavar="E",
                       help="e.g. 0 0.1 0.3 (default: --epsilon)")
     grid.add_argument("--horizons", type=positive, nargs="+", metavar="H", help="e.g. 100 400 (default: the run's)")
     grid.add_argument("--fresh", type=int, default=None, metavar="N",
                       help="also N fresh test-MDP layouts (seeds 2 000 000 000 + i), beside --rollouts validation ones")
-    grid.add_argument("--no-split", action="store_true", help="do not split by the first view (any task)")
+    grid.add_argument("--no-split", action="store_true",
+                      help="do not split by the first view (a task without one, e.g. hunting, never is)")
     grid.add_argument("--out", type=Path, default=None, help="also write the grid as CSV to this file")
     parser.set_defaults(handler=handle)
     return parser
@@ -57,13 +58,14 @@ def handle_grid(args: argparse.Namespace, policy) -> int:
     """Print (and with --out write as CSV) the policy's evaluation grid."""
     import csv
 
-    from train.evalgrid import GRID_COLUMNS, evaluate_grid, format_grid
+    from train.evalgrid import GRID_COLUMNS, NEEDED_FIRST, evaluate_grid, format_grid
 
     if args.fresh is not None and args.fresh < 0:
         raise ValueError(f"--fresh must be 0 or more layouts, got {args.fresh}")
     eps = args.epsilons or [policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon]
     horizons = args.horizons or [int(policy.test_kwargs["horizon"])]
-    rows = evaluate_grid(policy, eps, horizons, args.rollouts, args.fresh or 0, split=not args.no_split)
+    split = not args.no_split and policy.task in NEEDED_FIRST
+    rows = evaluate_grid(policy, eps, horizons, args.rollouts, args.fresh or 0, split=split)
     print(f"{policy.task}, {policy.meta.get('source', args.policy)} (seed {policy.seed}):")
     print("\n".join(format_grid(rows)))
     if args.out is not None:
