@@ -32,6 +32,7 @@ SMOKE_TASKS = {
     "episodic-vs-reset-free": None,
     "dynamism": ["foodcollector"],
     "dynamism-waypoint": ["hunting"],
+    "hunting-gap": None,
     "dynamism-sweep": ["salad"],
     "dynamism-sweep-waypoint": None,
     "shaping": ["hunting"],

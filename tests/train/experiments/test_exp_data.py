@@ -233,6 +233,19 @@ def test_dynamism_waypoint_is_fig_4_with_the_released_reward():
             assert released.replace(reward="sparse") == plain, (task, cond.name)
 
 
+@pytest.mark.parametrize(("arm", "fig4_name"), [("rf-lr3e-4", "dynamism"), ("rf-waypoint-lr3e-4", "dynamism-waypoint")])
+def test_hunting_gap_is_fig_4s_dynamic_non_episodic_hunting_with_another_rate(arm, fig4_name):
+    """Each `hunting-gap` arm builds Fig. 4's dynamic non-episodic hunting config of its reward with only the
+    learning rate changed (from the released scripts' 1e-4 to 3e-4).
+    """
+    gap, fig4 = get_experiment("hunting-gap"), get_experiment(fig4_name)
+    ours = job_config(gap, "hunting", {c.name: c for c in gap.conditions["hunting"]}[arm], gap.budget("paper"))
+    fig4_arm = {c.name: c for c in fig4.conditions["hunting"]}["dynamic-reset-free"]
+    theirs = job_config(fig4, "hunting", fig4_arm, fig4.budget("paper"))
+    assert (theirs.dqn.lr, ours.dqn.lr) == (1e-4, 3e-4)
+    assert ours.replace(lr=1e-4) == theirs
+
+
 def test_lr_sweep_repeats_the_arms_it_shares_a_rate_with():
     """Fig. 7's sweep spans the released script's five rates in both modes; its 1e-4 and 3e-4 arms build the
     very configs of the salad-gap and settings arms they repeat, so those runs stand for them.
