@@ -90,14 +90,17 @@ def split_rows(base: dict[str, Any], solved: np.ndarray, in_view: np.ndarray | N
 
 
 def evaluate_grid(policy: Policy, epsilons: Sequence[float], horizons: Sequence[int], validation: int = 100,
-                  fresh: int = 0, split: bool = True) -> list[dict[str, Any]]:
-    """Success of ``policy`` at every (layout set, horizon, epsilon), split by the first view if ``split``."""
+                  fresh: int = 0, split: bool = True, dynamism: float | None = None) -> list[dict[str, Any]]:
+    """Success of ``policy`` at every (layout set, horizon, epsilon), split by the first view if ``split`` and
+    the task defines one (`NEEDED_FIRST`), in the test MDP with ``dynamism`` if given.
+    """
+    split = split and policy.task in NEEDED_FIRST
     rows = []
     for name, seeds in layout_sets(validation, fresh).items():
         in_view = needed_in_first_view(policy.task, policy.test_kwargs, seeds) if split else None
         for horizon in horizons:
             for eps in epsilons:
-                result = policy.evaluate(len(seeds), eps, horizon=horizon, layout_seeds=seeds)
+                result = policy.evaluate(len(seeds), eps, horizon=horizon, layout_seeds=seeds, dynamism=dynamism)
                 base = {"layouts": name, "horizon": int(horizon), "epsilon": float(eps)}
                 rows += split_rows(base, result.solved[0], in_view)
     return rows

@@ -91,13 +91,16 @@ class Policy:
         return int(self.greedy(torch.from_numpy(np.asarray(obs, dtype=np.float32)).view(1, 1, -1))[0, 0])
 
     def evaluate(self, rollouts: int = 100, epsilon: float | None = None, horizon: int | None = None,
-                 layout_seeds: Sequence[int] | None = None) -> EvalResult:
+                 layout_seeds: Sequence[int] | None = None, dynamism: float | None = None) -> EvalResult:
         """Success and return on the first ``rollouts`` validation layouts of the test MDP (the paper's
         protocol: epsilon-greedy with the run's evaluation epsilon unless ``epsilon`` is given); ``horizon``
-        replaces the run's evaluation horizon, ``layout_seeds`` the validation layouts (one per rollout).
+        replaces the run's evaluation horizon, ``layout_seeds`` the validation layouts (one per rollout),
+        ``dynamism`` the test MDP's (0, static, in the paper's protocol).
         """
         eps = self.cfg.eval.eval_epsilon if epsilon is None else epsilon
         kwargs = self.test_kwargs if horizon is None else evaluation_kwargs(self._info.test_kwargs, horizon)
+        if dynamism is not None:
+            kwargs = {**kwargs, "dynamism": dynamism}
         evaluator = Evaluator(get_task(self.task).env_id, kwargs, 1, rollouts, eps, self._info.num_actions,
                               layout_seeds)
         try:

@@ -67,3 +67,25 @@ def test_grid_of_a_task_without_a_first_view_need_is_not_split(cli):
     proc = cli("evaluate", str(shipped_policy("hunting")), "--epsilons", "0", "--horizons", "5", "--rollouts", "3")
     rows = [line for line in proc.stdout.splitlines() if line.startswith("validation")]
     assert len(rows) == 1 and " all " in rows[0]
+
+
+def test_the_grid_can_evaluate_in_a_dynamic_test_mdp(monkeypatch, cli):
+    import train.policy
+
+    made = []
+
+    class Spy(train.policy.Evaluator):
+        def __init__(self, env_id, kwargs, *args, **kw):
+            made.append(kwargs["dynamism"])
+            super().__init__(env_id, kwargs, *args, **kw)
+
+    monkeypatch.setattr(train.policy, "Evaluator", Spy)
+    policy = load_policy(shipped_policy("hunting"))
+    evaluate_grid(policy, [0.1], [5], validation=2, dynamism=0.2)
+    evaluate_grid(policy, [0.1], [5], validation=2)
+    assert made == [0.2, 0.0]
+    proc = cli("evaluate", str(shipped_policy("hunting")), "--test-dynamism", "0.2", "--horizons", "5",
+               "--rollouts", "2")
+    assert "test MDP with dynamism 0.2" in proc.stdout
+    bad = cli("evaluate", str(shipped_policy("hunting")), "--test-dynamism", "1.5", check=False)
+    assert bad.returncode == 2 and "--test-dynamism" in bad.stderr

@@ -31,6 +31,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                       help="also N fresh test-MDP layouts (seeds 2 000 000 000 + i), beside --rollouts validation ones")
     grid.add_argument("--no-split", action="store_true",
                       help="do not split by the first view (a task without one, e.g. hunting, never is)")
+    grid.add_argument("--test-dynamism", type=probability, default=None, metavar="P",
+                      help="evaluate in the test MDP with dynamism P instead of the paper's static one (e.g. 0.2: "
+                           "hunting's deer keep moving, as in the released validation layouts)")
     grid.add_argument("--out", type=Path, default=None, help="also write the grid as CSV to this file")
     parser.set_defaults(handler=handle)
     return parser
@@ -42,7 +45,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
     with user_errors(ValueError, OSError, RunDirError):
         policy = load_policy(args.policy, args.agent)
-        if any(x is not None for x in (args.epsilons, args.horizons, args.fresh, args.out)) or args.no_split:
+        grid_options = (args.epsilons, args.horizons, args.fresh, args.out, args.test_dynamism)
+        if any(x is not None for x in grid_options) or args.no_split:
             return handle_grid(args, policy)
         results = {"policy": policy.evaluate(args.rollouts, args.epsilon),
                    "random": policy.evaluate(args.rollouts, epsilon=1.0)}
@@ -58,15 +62,16 @@ def handle_grid(args: argparse.Namespace, policy) -> int:
     """Print (and with --out write as CSV) the policy's evaluation grid."""
     import csv
 
-    from train.evalgrid import GRID_COLUMNS, NEEDED_FIRST, evaluate_grid, format_grid
+    from train.evalgrid import GRID_COLUMNS, evaluate_grid, format_grid
 
     if args.fresh is not None and args.fresh < 0:
         raise ValueError(f"--fresh must be 0 or more layouts, got {args.fresh}")
     eps = args.epsilons or [policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon]
     horizons = args.horizons or [int(policy.test_kwargs["horizon"])]
-    split = not args.no_split and policy.task in NEEDED_FIRST
-    rows = evaluate_grid(policy, eps, horizons, args.rollouts, args.fresh or 0, split=split)
-    print(f"{policy.task}, {policy.meta.get('source', args.policy)} (seed {policy.seed}):")
+    rows = evaluate_grid(policy, eps, horizons, args.rollouts, args.fresh or 0, split=not args.no_split,
+                         dynamism=args.test_dynamism)
+    where = "" if args.test_dynamism is None else f", test MDP with dynamism {args.test_dynamism:g}"
+    print(f"{policy.task}, {policy.meta.get('source', args.policy)} (seed {policy.seed}){where}:")
     print("\n".join(format_grid(rows)))
     if args.out is not None:
         with open(args.out, "w", newline="") as f:
