@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from train.cli.common import DEFAULT_OUT, UserError, nonnegative, positive
-from train.experiments.catalog import GRID_TASKS
+from train.experiments.choices import GRID_TASKS
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:

@@ -11,7 +11,7 @@ from typing import Any
 from train.cli.common import user_errors
 from train.cli.flags import add_config_arguments, flag, given_settings, shown
 from train.config import SECTIONS, TrainConfig, _jsonable
-from train.experiments.catalog import TUNED
+from train.experiments.choices import TUNED
 from train.tasks import TASKS
 
 
@@ -52,7 +52,7 @@ def default_run_dir(cfg: TrainConfig) -> Path:
 
 
 def tuned_settings(task: str, given: dict[str, Any]) -> dict[str, Any]:
-    """The task's tuned settings (`train.experiments.catalog.TUNED`, which every experiment uses) that the
+    """The task's tuned settings (`train.experiments.choices.TUNED`, which every experiment uses) that the
     command line does not override, e.g. ``{'lr': 3e-4}`` for salad unless ``--lr`` is given.
     """
     return {k: v for k, v in TUNED.get(task, {}).items() if k not in given}

@@ -15,30 +15,8 @@ with epsilon decaying over 15 000 steps instead of 90 000, dynamic episodic sala
 after 120 000 steps instead of ~17%, 3 seeds). `job_config` builds the `TrainConfig` of one (experiment, task,
 condition, budget).
 
-Choices the paper leaves open, and where the values come from:
-
-* dynamic p (Fig. 4): salad 0.1 (original script and heat-map titles), hunting 0.2 (deer move probability of
-  the original dynamism sweep), factory 0.2 (worker move probability, middle of the original sweep),
-  scavenging 0.5 (predators move at random half the time; the original's scratch sweep has no paper value),
-  food collector 0.5 (spheres at 5 units/s; our reading, the paper gives no number), walled salad 0.1 (as
-  salad; no experiment trains it dynamic, Table 1 measures it). Table 1's dynamic worlds are these
-  (`train.experiments.table1.hitting_conditions`).
-* shaping schedules (Fig. 5, 6, 8): salad ``linear:1:0:280000`` equals the original (40 000, 20 000)
-  spawn window on 8x8; scavenging ``linear:1:0:540000`` equals the original (60 000, 30 000) on 10x10;
-  walled salad ``linear:1:0:360000`` is the original (60 000, 20 000) on 10x10 opening one cell per
-  20 000 steps (it starts at side 2 instead of 3); hunting easy-deer fraction ``linear:1:0:100000``
-  (the original's longest easy-to-hard period, 1e5); factory cooperative workers ``linear:0.2:0:400000``
-  (the original's approach probability move 0.2 x close 0.5-0.8, decaying to 0 after 250 000-400 000
-  steps); food collector ``linear:1:0:280000`` (our choice, as salad).
-* shaping base tasks: salad and walled salad grow ingredients at p = 0.05 (the original shaping scripts; with
-  p = 0 nothing would spawn inside the window); hunting uses hard deer fleeing with probability 0.2 in
-  training and test (SPEC); the others are static.
-* trainer settings (`TUNED`): the original code's defaults (`TrainConfig`), except salad's learning rate,
-  3e-4, chosen as the paper chose it, by a learning-rate sweep (the released salad script sweeps 1e-5 ... 1e-3;
-  every other released script fixes 1e-4). The sweep is the ``settings`` experiment; its evidence is in
-  docs/fidelity.md ("Trainer settings").
-* evaluation horizon: left to the trainer, which takes each task's test horizon from its test MDP
-  (``test_mdp_kwargs()``), whatever the training horizon.
+The values the paper leaves open (each task's dynamic p, shaping schedule and base task, the tuned trainer
+settings, the steps per seed) are in `train.experiments.choices`, with where each comes from.
 """
 
 from __future__ import annotations
@@ -49,45 +27,20 @@ from types import MappingProxyType
 from typing import Any
 
 from train.config import TrainConfig
+from train.experiments.choices import (
+    DYNAMIC_P,
+    GRID_TASKS,
+    PAPER_STEPS,
+    PAPER_TASKS,
+    SHAPING_BASE,
+    SHAPING_SCHEDULE,
+    TUNED,
+)
 from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
-from train.tasks import TASKS
 
 __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "SHAPING_BASE",
            "SHAPING_SCHEDULE", "SMOKE", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition", "Experiment",
            "get_experiment", "job_config"]
-
-GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
-"""The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
-
-PAPER_TASKS = ("salad", "hunting", "scavenging", "factory", "foodcollector")
-"""The five panels of the paper's Fig. 4 and Fig. 5."""
-
-DYNAMIC_P = MappingProxyType({"salad": 0.1, "hunting": 0.2, "scavenging": 0.5, "factory": 0.2,
-                              "walled-salad": 0.1, "foodcollector": 0.5})
-"""The dynamism p of each task's 'dynamic' condition (see the module docstring)."""
-
-SHAPING_SCHEDULE = MappingProxyType({
-    "salad": "linear:1:0:280000", "hunting": "linear:1:0:100000", "scavenging": "linear:1:0:540000",
-    "factory": "linear:0.2:0:400000", "walled-salad": "linear:1:0:360000", "foodcollector": "linear:1:0:280000",
-})
-"""Environment-shaping schedule of each task, in the paper's clock (see the module docstring)."""
-
-TUNED = MappingProxyType({"salad": MappingProxyType({"lr": 3e-4})})
-"""Trainer settings every experiment uses for a task instead of `TrainConfig`'s defaults (the original
-code's); a condition's own overrides still win. Salad's learning rate is the best of the settings study's
-sweep (10 seeds x 500 000 steps per rate; docs/fidelity.md)."""
-
-SHAPING_BASE = MappingProxyType({
-    "salad": {"dynamism": 0.05}, "walled-salad": {"dynamism": 0.05},
-    "hunting": {"env_kwargs": {"deer_kind": "hard", "deer_speed": 0.2}},
-    "scavenging": {}, "factory": {}, "foodcollector": {},
-})
-"""The task every condition of the shaping experiments trains on (and is tested on), before its own knobs."""
-
-PAPER_STEPS = MappingProxyType({"salad": 1_000_000, "hunting": 1_500_000, "scavenging": 1_250_000,
-                                "factory": 1_250_000, "walled-salad": 1_000_000, "foodcollector": 1_000_000})
-"""Steps per seed of the dynamism experiments (original: 2 000 / 3 000 / 2 500 epochs of 500 steps)."""
-
 
 # ---- building configs ----------------------------------------------------------------------------------
 

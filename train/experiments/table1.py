@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ecology import hitting_time, marginal_entropy, parse_schedule
-from train.experiments.catalog import DYNAMIC_P, GRID_TASKS, SHAPING_BASE, SHAPING_SCHEDULE
+from train.experiments.choices import DYNAMIC_P, GRID_TASKS, SHAPING_BASE, SHAPING_SCHEDULE
 from train.fileio import atomic_text
 
 MEASUREMENTS = ("hitting-time", "entropy")
