@@ -137,7 +137,19 @@ class GridTaskEnv(gym.Env):
         if isinstance(self.config, EpisodeRules):
             r["replay_unsolved"] = self.config.replay_unsolved
         self.fill_rules(r)
+        self._check_room(r)
         return rules
+
+    def _check_room(self, r: np.void) -> None:
+        # Reset fills the grid before it draws the agent's cell (and the predators'): with no cell left
+        # for them it would put the agent off the grid or search forever.
+        free = int((r["layout"] == Code.EMPTY).sum())
+        needed = int(r["initial"].sum()) + 1 + (1 if r["num_predators"] else 0)
+        if needed > free:
+            who = "the agent and a predator" if r["num_predators"] else "the agent"
+            raise ValueError(f"{type(self).__name__} places {int(r['initial'].sum())} objects at reset, but its "
+                             f"{self.config.grid_size}x{self.config.grid_size} grid has {free} free cells, "
+                             f"{needed} with {who}; lower the object counts or raise grid_size")
 
     def fill_rules(self, r: np.void) -> None:
         """Write the task's tables into the rules record ``r`` (dynamism and shaping included)."""

@@ -151,6 +151,22 @@ def test_task_specific_choices_are_validated():
         gridtasks.ScavengingEnv(predator_count=9)
 
 
+@pytest.mark.parametrize("make, who", [
+    (lambda: gridtasks.SaladEnv(initial_count=18), "the agent;"),  # 36 objects fill the 6x6 interior
+    (lambda: gridtasks.HuntingEnv(deer_count=34, axe_count=2), "the agent;"),
+    (lambda: gridtasks.ScavengingEnv(food_count=63), "the agent and a predator;"),
+])
+def test_more_objects_than_the_grid_holds_are_refused(make, who):
+    with pytest.raises(ValueError, match=f"grid has .* free cells, .* with {who} lower the object counts"):
+        make()
+
+
+def test_the_fullest_grid_that_fits_still_resets():
+    env = gridtasks.SaladEnv(initial_count=17)  # 34 objects + the agent in 36 cells
+    env.reset(seed=0)
+    assert (env.unwrapped._state[0]["agent"] >= 0).all()
+
+
 @pytest.mark.parametrize("action", [-1, 7, 2.0, "north", None, True, np.array([1, 2])])
 def test_action_outside_the_space_is_refused(action):
     env = gridtasks.SaladEnv()
