@@ -68,3 +68,11 @@ def probability(text: str) -> float:
     if not 0.0 <= value <= 1.0:
         raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text}")
     return value
+
+
+def minutes(text: str) -> float:
+    """A finite number of minutes > 0 (an argparse type)."""
+    value = float(text)
+    if not 0.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number of minutes > 0, got {text}")
+    return value

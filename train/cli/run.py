@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from train.cli.common import DEFAULT_OUT, UserError, positive, relative, user_errors
+from train.cli.common import DEFAULT_OUT, UserError, minutes, positive, relative, user_errors
 from train.experiments.catalog import BUDGETS, EXPERIMENTS, get_experiment
 
 
@@ -45,7 +45,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="where the networks and updates run: cpu (default) or cuda[:N]")
     parser.add_argument("--seeds", type=positive, default=None, help="override the budget's seeds per condition")
     parser.add_argument("--steps", type=positive, default=None, help="override the budget's steps per seed")
-    parser.add_argument("--minutes", type=float, default=None,
+    parser.add_argument("--minutes", type=minutes, default=None,
                         help="time budget: measure this machine's speed first, then size the steps per seed so that "
                              "every run and the report end within this many minutes (at most the budget's steps)")
     parser.add_argument("--restart", nargs="+", metavar="C", default=(),

@@ -55,6 +55,13 @@ def test_run_list_and_dry_run(capsys, tmp_path):
         cli.main(["run", "rnd", "--task", "salad"])
 
 
+@pytest.mark.parametrize("bad", ["-1", "0", "nan", "inf"])
+def test_run_refuses_a_time_budget_that_is_no_time(bad, capsys, tmp_path):
+    with pytest.raises(SystemExit):
+        cli.main(["run", "headline", "--minutes", bad, "--dry-run", "--out", str(tmp_path)])
+    assert f"expected a number of minutes > 0, got {bad}" in capsys.readouterr().err
+
+
 def test_measure_writes_tables(capsys, tmp_path):
     assert cli.main(["measure", "hitting-time", "--task", "salad", "--seeds", "3", "--steps", "300",
                           "--out", str(tmp_path)]) == 0
