@@ -195,3 +195,32 @@ def test_learned_level_gives_the_learned_seeds_range_and_mean():
     assert learned_level(np.array([0.05, 0.56]), "success") == "56%"
     assert learned_level(np.array([0.05, 0.2]), "success") == "—"  # exactly at the threshold is not learned
     assert learned_level(np.array([3.0, 9.0]), "return") == "—"  # returns have no learning threshold
+
+
+_METRICS = "step,seed,success,loss\n100,0,0.5,1.0\n100,1,0.25,1.0\n200,0,0.75,1.0\n200,1,0.5,1.0\n"
+
+
+def _columns(tmp_path, text):
+    from train.experiments.report.runs import read_columns
+
+    (tmp_path / "metrics.csv").write_text(text)
+    return read_columns(tmp_path / "metrics.csv", ("success",))
+
+
+def test_a_last_line_cut_short_by_an_interrupted_run_is_dropped(tmp_path):
+    steps, seeds, (success,) = _columns(tmp_path, _METRICS.replace("200,1,0.5,1.0\n", "200,1,0.4"))
+    assert steps.tolist() == [100] and seeds.tolist() == [0, 1]  # step 200 lacks seed 1 now
+    assert success.tolist() == [[0.5, 0.25]]
+
+
+@pytest.mark.parametrize("text, message", [
+    ("garbage,,\n\x00\x01\n", "is not an ecorl metrics file"),
+    (_METRICS.replace("200,0,0.75", "200,zero,0.75"), "line 4 is not a metrics row"),
+    (_METRICS.replace("100,1,0.25,1.0", "100,1"), "line 3 is not a metrics row .fewer cells"),
+])
+def test_a_damaged_metrics_file_is_refused_by_name(tmp_path, text, message):
+    from train.experiments.report.runs import ReportError
+
+    with pytest.raises(ReportError, match=message) as caught:
+        _columns(tmp_path, text)
+    assert "metrics.csv" in str(caught.value) and "--restart" in str(caught.value)

@@ -80,6 +80,10 @@ def task_metric(task: str) -> str:
     return TASKS[task].metric if task in TASKS else "success"
 
 
+_DAMAGED = ("train that run again ('ecorl run ... --restart CONDITION', or 'ecorl train' into a new directory) or "
+            "move its directory out of the results")
+
+
 def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
                  ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """(steps (E,), seeds (S,), one (E, S) array per column) of a metrics.csv; evaluations missing a seed are
@@ -87,10 +91,21 @@ def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
     """
     by_step: dict[int, dict[int, list[float]]] = {}
     with io.StringIO(read_text(path), newline="") as f:  # a regular file only: no link, FIFO or device
-        for row in csv.DictReader(f):
-            cells = [row.get(c) for c in columns]
+        reader = csv.DictReader(f)
+        rows, header = list(reader), reader.fieldnames or []
+    if header and not {"step", "seed"} <= set(header):
+        raise ReportError(f"{path} is not an ecorl metrics file (its header {header[:4]} has no step and seed "
+                          f"columns); {_DAMAGED}")
+    for number, row in enumerate(rows, start=2):
+        try:
+            if None in row.values():  # fewer cells than the header
+                raise ValueError("fewer cells than the header")
             by_step.setdefault(int(row["step"]), {})[int(row["seed"])] = [
-                float(v) if v not in (None, "") else missing for v in cells]
+                float(v) if v not in (None, "") else missing for v in (row.get(c) for c in columns)]
+        except ValueError as error:
+            if number == len(rows) + 1:
+                break  # the last line of a run interrupted while writing it
+            raise ReportError(f"{path} line {number} is not a metrics row ({error}); {_DAMAGED}") from None
     if not by_step:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), [np.zeros((0, 0)) for _ in columns]
     seeds = sorted(set().union(*by_step.values()))
