@@ -73,6 +73,10 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     real_dir(path.parent)
     tmp = temporary_name(path)
     try:
+        open(tmp, "xb").close()  # an unwritable place fails here, by name, not deep inside a library
+    except OSError as err:
+        raise OSError(f"cannot write {path}: {err.strerror or err}; choose a writable location") from None
+    try:
         yield tmp
         fsync_path(tmp)
         _replace(tmp, path)

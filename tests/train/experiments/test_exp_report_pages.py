@@ -133,3 +133,13 @@ def test_videos_are_h264_padded_to_even_sizes_and_byte_stable(tmp_path):
     with pytest.raises(ValueError, match="frame of size"):
         write_h264([frames[0], np.zeros((10, 10, 3), np.uint8)], tmp_path / "c.mp4")
     assert not (tmp_path / "c.mp4").exists()
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs a directory no one may write: /proc")
+def test_a_video_that_cannot_be_written_is_refused_by_name_before_ffmpeg_starts():
+    import numpy as np
+
+    from train.experiments.video import write_h264
+
+    with pytest.raises(OSError, match="cannot write /proc/x.mp4: .*; choose a writable location"):
+        write_h264([np.zeros((8, 8, 3), np.uint8)], "/proc/x.mp4")
