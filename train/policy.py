@@ -277,6 +277,9 @@ def load_policy(path: str | Path, seed_index: int = 0) -> Policy:
     if is_policy_file(path):
         if not path.is_file():
             raise FileNotFoundError(f"no policy file at {path}")
+        if seed_index:
+            raise ValueError(f"{path} is a policy file, which holds one seed; the seed index {seed_index} (--agent) "
+                             f"picks among a run's seeds: pass the run directory instead, or drop --agent")
         return load_policy_file(path)
     return policy_from_run(path, seed_index)
 

@@ -143,3 +143,16 @@ def test_a_video_that_cannot_be_written_is_refused_by_name_before_ffmpeg_starts(
 
     with pytest.raises(OSError, match="cannot write /proc/x.mp4: .*; choose a writable location"):
         write_h264([np.zeros((8, 8, 3), np.uint8)], "/proc/x.mp4")
+
+
+def test_a_shipped_run_is_filmed_from_its_best_policy_file_whatever_the_best_seeds_index(tmp_path):
+    import json
+
+    from train.experiments.report.runs import read_run
+    from train.experiments.report.webvideo import film_best_seed
+
+    shipped = REFERENCE_DIR / "hunting-gap" / "hunting" / "rf-lr3e-4"  # its best seed is seed 7 (47 %)
+    run = read_run(shipped, "hunting", "rf-lr3e-4", "lr 3e-4")
+    film_best_seed(run, tmp_path / "video.mp4", shipped / "policies" / "best.npz")
+    assert json.loads((tmp_path / "video.json").read_text())["seed"] == 7
+    assert (tmp_path / "video.mp4").stat().st_size > 1000 and (tmp_path / "filmstrip.png").exists()

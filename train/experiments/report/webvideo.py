@@ -39,7 +39,7 @@ def film_best_seed(run: Run, target: Path, policy: Path | None = None) -> Path:
     from train.experiments.video import record_video
 
     index = best_seed(run)
-    video = record_video(None, target, policy_path=policy or run.path, seed_index=index,
+    video = record_video(None, target, policy_path=policy or run.path, seed_index=0 if policy else index,
                          strip=target.with_name(STRIP_NAME))
     first = _first_seed(run.path)
     info = {"seed": first + index, "episodes": video.episodes, "solved": video.solved, "metric": video.metric,
