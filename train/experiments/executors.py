@@ -9,6 +9,7 @@ from __future__ import annotations
 import faulthandler
 import os
 import signal
+import socket
 import sys
 import threading
 import time
@@ -173,6 +174,25 @@ def _import_ray():
     return ray
 
 
+RAY_CONNECT_TIMEOUT_S = 10.0
+"""How long ``--address HOST:PORT`` may take to accept a connection before the run is refused."""
+
+
+def check_ray_address(address: str | None) -> None:
+    """Refuse at once a cluster address where nothing answers: Ray itself keeps retrying for many minutes."""
+    if address in (None, "auto", "local"):
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    host = host.strip("[]")  # an IPv6 literal
+    if not host or not port.isdigit():
+        raise RuntimeError(f"--address {address!r} is not HOST:PORT, ray://HOST:PORT or auto")
+    try:
+        socket.create_connection((host, int(port)), timeout=RAY_CONNECT_TIMEOUT_S).close()
+    except OSError as err:
+        raise RuntimeError(f"no Ray cluster answers at {address} ({err.strerror or err}): start one with 'ray start "
+                           f"--head' on its head node, check --address, or use --executor local") from None
+
+
 def run_ray(jobs: Sequence[Job | Pack], address: str | None, on_result: Callable[[JobResult], None]) -> list[JobResult]:
     """Run ``jobs`` as Ray tasks (one CPU each) on the cluster at ``address`` (None: start a local one).
 
@@ -181,6 +201,7 @@ def run_ray(jobs: Sequence[Job | Pack], address: str | None, on_result: Callable
     """
     ray = _import_ray()
     if not ray.is_initialized():
+        check_ray_address(address)
         ray.init(address=address, log_to_driver=False, include_dashboard=False)
     remote = ray.remote(num_cpus=1, max_retries=0)(execute_unit)
     pending = {remote.remote(job): job for job in jobs}

@@ -76,3 +76,28 @@ def test_ray_executor_gives_the_local_layout(ray_head, tmp_path, cli):
         ray_rows = (tmp_path / "ray" / "rnd" / "factory" / cond / "metrics.csv").read_text().splitlines()
         local_rows = (tmp_path / "local" / "rnd" / "factory" / cond / "metrics.csv").read_text().splitlines()
         assert _drop_timing(ray_rows) == _drop_timing(local_rows)
+
+
+@pytest.mark.parametrize("address, message", [
+    ("nonsense", "is not HOST:PORT"),
+    ("head:port", "is not HOST:PORT"),
+])
+def test_a_malformed_cluster_address_is_refused(address, message):
+    from train.experiments.executors import check_ray_address
+
+    with pytest.raises(RuntimeError, match=message):
+        check_ray_address(address)
+
+
+def test_a_cluster_address_where_nothing_listens_is_refused_at_once():
+    from train.experiments.executors import check_ray_address
+
+    port = _free_port()  # closed again: nothing listens there
+    with pytest.raises(RuntimeError, match=f"no Ray cluster answers at 127.0.0.1:{port} .*--executor local"):
+        check_ray_address(f"127.0.0.1:{port}")
+    with socket.socket() as listening:
+        listening.bind(("127.0.0.1", 0))
+        listening.listen()
+        check_ray_address(f"ray://127.0.0.1:{listening.getsockname()[1]}")  # something answers: go on
+    for local in (None, "auto", "local"):
+        check_ray_address(local)
