@@ -25,6 +25,7 @@ COMMANDS = (train_command, run, report, measure, video, export, evaluate, demo)
 def build_parser() -> argparse.ArgumentParser:
     """The ``ecorl`` parser with every subcommand."""
     parser = OneLineParser(prog="ecorl", description="Ecological reinforcement learning, reproduced.")
+    parser.add_argument("--version", action="version", version=f"ecorl {_version()}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=OneLineParser)
     for command in COMMANDS:
         command.add_parser(subparsers)
@@ -33,9 +34,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _version() -> str:
+    """The installed package's version ('unknown' when run from a tree that is not installed)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("ecorl")
+    except PackageNotFoundError:
+        return "unknown"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``ecorl`` console script (and of ``python -m train.cli``)."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    if not (sys.argv[1:] if argv is None else argv):  # a bare ``ecorl``: the overview, not an error
+        parser.print_help()
+        return 0
+    args = parser.parse_args(argv)
     try:
         return args.handler(args, args.command_parser)
     except UserError as err:

@@ -41,6 +41,15 @@ def test_ecorl_cli_has_the_subcommands_once_wired():
     assert {"run", "report", "measure", "video"} <= names
 
 
+def test_a_bare_ecorl_shows_the_commands_and_version_names_the_package(capsys):
+    assert cli.main([]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: ecorl") and all(name in out for name in ("train", "run", "report", "evaluate"))
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["--version"])
+    assert stop.value.code == 0 and capsys.readouterr().out.startswith("ecorl ")
+
+
 def test_run_list_and_dry_run(capsys, tmp_path):
     assert cli.main(["run", "--list"]) == 0
     out = capsys.readouterr().out
