@@ -121,8 +121,11 @@ def resolve_run_dir(path: str | Path) -> Path:
     if not (run_dir / CHECKPOINT_NAME).exists() and (run_dir / LEGACY_NAME).exists():
         raise RunDirError(legacy_message(run_dir / LEGACY_NAME))
     if not (run_dir / CHECKPOINT_NAME).exists() or not (run_dir / "config.json").exists():
+        shipped = sorted((run_dir / RUN_POLICIES_DIR).glob("*.npz")) if run_dir.is_dir() else []
+        hint = (f"; it was kept without its checkpoint: pass one of its exported policies, "
+                f"{', '.join(str(p) for p in shipped)}" if shipped else "")
         raise FileNotFoundError(f"{path} is not a run directory with config.json and {CHECKPOINT_NAME} "
-                                f"(nor a {CHECKPOINT_NAME} inside one, nor a .npz policy file)")
+                                f"(nor a {CHECKPOINT_NAME} inside one, nor a .npz policy file){hint}")
     return run_dir
 
 

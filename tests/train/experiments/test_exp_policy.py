@@ -210,3 +210,11 @@ def test_every_shipped_policy_names_its_run_without_a_machines_path():
         source = load_policy_file(path).meta["source"]
         assert source and not Path(source).is_absolute(), (path, source)
     assert len(RESULT_POLICIES) >= 16  # the salad-gap arms' best and median seeds
+
+
+def test_a_run_kept_without_its_checkpoint_points_to_its_exported_policies(capsys):
+    shipped = RESULT_POLICIES[0].parent.parent  # a shipped paper-budget run: metrics and policies, no checkpoint
+    assert cli.main(["evaluate", str(shipped)]) == 2
+    err = capsys.readouterr().err
+    assert "kept without its checkpoint: pass one of its exported policies" in err
+    assert str(shipped / "policies" / "best.npz") in err
