@@ -12,7 +12,7 @@ def write_video(frames: Iterable[np.ndarray], path: str | Path, fps: float = 10.
     """Write RGB uint8 frames (H, W, 3) to an MP4 file and return its path.
 
     All frames must share one size. The file is written to a temporary name and moved into place, so an
-    interrupted call never leaves a truncated video behind.
+    interrupted call never leaves a truncated video behind; a call that fails removes its temporary.
     """
     import cv2
 
@@ -35,6 +35,9 @@ def write_video(frames: Iterable[np.ndarray], path: str | Path, fps: float = 10.
                 raise ValueError(f"frame {count} has size {frame.shape[:2]}, expected {size[::-1]}")
             writer.write(np.ascontiguousarray(frame[:, :, ::-1]))
             count += 1
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     finally:
         if writer is not None:
             writer.release()

@@ -50,3 +50,10 @@ def test_write_video_refuses_bad_frames(tmp_path):
         write_video([np.zeros((8, 8), np.uint8)], tmp_path / "x.mp4")
     with pytest.raises(ValueError, match="no frames"):
         write_video([], tmp_path / "y.mp4")
+
+
+def test_write_video_that_fails_midway_leaves_no_file(tmp_path):
+    frames = [np.zeros((16, 16, 3), np.uint8), np.zeros((16, 24, 3), np.uint8)]
+    with pytest.raises(ValueError, match="frame 1 has size"):
+        write_video(frames, tmp_path / "clip.mp4")
+    assert list(tmp_path.iterdir()) == []
