@@ -261,3 +261,16 @@ def test_lr_sweep_repeats_the_arms_it_shares_a_rate_with():
         arm = next(c for c in exp.conditions["salad"] if c.name == other_arm)
         assert job_config(sweep, "salad", arms[name], sweep.budget("paper")) == \
             job_config(exp, "salad", arm, exp.budget("paper")), name
+
+
+def test_shaping_no_shaping_salad_is_the_sparse_sweeps_p0_05_run_longer():
+    """Fig. 5's salad 'no shaping' arm trains Fig. 6 (left)'s sparse p 0.05 arm for 1.25 M steps instead of
+    1 M, nothing else changed (the exploration schedule does not depend on the length): its first 1 M steps
+    are a replicate of the shipped p 0.05 run, and every other shaping arm differs from it.
+    """
+    shaping, sweep = get_experiment("shaping"), get_experiment("dynamism-sweep")
+    p005 = job_config(sweep, "salad", {c.name: c for c in sweep.conditions["salad"]}["p0.05"], sweep.budget("paper"))
+    ours = {c.name: job_config(shaping, "salad", c, shaping.budget("paper")) for c in shaping.conditions["salad"]}
+    assert (p005.run.steps, ours["no-shaping"].run.steps) == (1_000_000, 1_250_000)
+    assert ours["no-shaping"].replace(steps=p005.run.steps) == p005
+    assert all(cfg.replace(steps=p005.run.steps) != p005 for name, cfg in ours.items() if name != "no-shaping")
