@@ -34,13 +34,14 @@ from train.experiments.choices import (
     PAPER_TASKS,
     SHAPING_BASE,
     SHAPING_SCHEDULE,
+    SPARSE_EQUIVALENT,
     TUNED,
 )
 from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
 
 __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "SHAPING_BASE",
-           "SHAPING_SCHEDULE", "SMOKE", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition", "Experiment",
-           "get_experiment", "job_config"]
+           "SHAPING_SCHEDULE", "SMOKE", "SPARSE_EQUIVALENT", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition",
+           "Experiment", "get_experiment", "job_config"]
 
 # ---- building configs ----------------------------------------------------------------------------------
 
@@ -89,7 +90,9 @@ def _with_reward(conditions: tuple[Condition, ...], reward: str, note: str) -> t
 
 
 def _shaping_conditions(task: str, reset_free: bool = True, suffix: str = "") -> tuple[Condition, ...]:
-    """Env shaping + sparse / + subgoal, distance and one-time reward shaping, no shaping (Fig. 5, 8)."""
+    """Env shaping + sparse / + subgoal, distance and one-time reward shaping, no shaping (Fig. 5, 8), less the
+    arms whose reward is the sparse one on ``task`` (`SPARSE_EQUIVALENT`).
+    """
     base = {**SHAPING_BASE[task], "reset_free": reset_free}
     schedule = SHAPING_SCHEDULE[task]
     table = [("env-shaping-sparse", "env shaping, sparse reward", {"shaping": schedule, "reward": "sparse"}),
@@ -99,6 +102,8 @@ def _shaping_conditions(task: str, reset_free: bool = True, suffix: str = "") ->
              ("no-shaping", "no shaping, sparse reward", {"reward": "sparse"})]
     if task == "foodcollector":  # no subgoals, hence no reward shaping (Fig. 5 caption)
         table = [row for row in table if row[0] in ("env-shaping-sparse", "no-shaping")]
+    same = SPARSE_EQUIVALENT.get(task, frozenset())  # these arms would repeat the sparse arm of their shaping
+    table = [row for row in table if row[2]["reward"] not in same]
     mode = ", non-episodic" if reset_free else ", episodic"
     return tuple(Condition(name + suffix, label + (mode if suffix else ""), {**base, **knobs})
                  for name, label, knobs in table)
@@ -251,19 +256,22 @@ def _dynamism_sweep_waypoint() -> Experiment:
         {"salad": 1_000_000}, 10, {"smoke": SMOKE, "quick": _quick(3, 100_000)})
 
 
-WAYPOINT_TASKS = ("hunting", "scavenging", "factory")
-"""The Fig. 4 tasks whose released scripts train with the waypoint reward besides the text's sparse one (the
-salad's is `headline-waypoint`; the food collector has only its sparse reward)."""
+WAYPOINT_TASKS = tuple(t for t in ("hunting", "scavenging", "factory")
+                       if "waypoint" not in SPARSE_EQUIVALENT.get(t, ()))
+"""The Fig. 4 tasks whose released scripts train with the waypoint reward besides the text's sparse one, where
+it differs from it (the salad's is `headline-waypoint`; the food collector has only its sparse reward;
+scavenging's waypoint reward is its sparse one, so its panel is `dynamism`'s)."""
 
 
 def _dynamism_waypoint() -> Experiment:
     """Fig. 4's other grid panels under the released scripts' waypoint reward."""
     return Experiment(
         "dynamism-waypoint", "Fig. 4, released scripts' reward", "Dynamism and resets, waypoint reward",
-        "The 'dynamism' conditions of hunting, scavenging and factory trained with the reward of the released "
-        "scripts (+1 for every intermediate object picked up or made, farmable; +100 on completion) instead "
-        "of the paper text's sparse reward; the released hunting script trains no sparse arm at all. Salad's "
-        "is 'headline-waypoint'.",
+        "The 'dynamism' conditions of hunting and factory trained with the reward of the released scripts (+1 "
+        "for every intermediate object picked up or made, farmable; +100 on completion) instead of the paper "
+        "text's sparse reward; the released hunting script trains no sparse arm at all. Salad's is "
+        "'headline-waypoint'; scavenging has no intermediate object, so its waypoint reward is its sparse one "
+        "and its panel is 'dynamism''s.",
         {t: _with_reward(_dynamism_conditions(t), "waypoint", "waypoint reward") for t in WAYPOINT_TASKS},
         {t: PAPER_STEPS[t] for t in WAYPOINT_TASKS}, 10, {"smoke": SMOKE, "quick": _quick(3, 150_000)})
 
@@ -304,8 +312,10 @@ def _task_experiments() -> list[Experiment]:
         Experiment(
             "shaping", "Fig. 5", "Environment shaping vs reward shaping",
             "Non-episodic training with environment shaping (sparse or subgoal reward), distance-based or "
-            "one-time reward shaping, or no shaping. The report films each condition's best seed with a "
-            "filmstrip of its first test episode (the paper's Fig. 11-12).",
+            "one-time reward shaping, or no shaping. Scavenging has no intermediate object, so its subgoal and "
+            "one-time rewards are its sparse one: those two arms would repeat 'env-shaping-sparse' and "
+            "'no-shaping' step for step and are not listed. The report films each condition's best seed with "
+            "a filmstrip of its first test episode (the paper's Fig. 11-12).",
             {t: _shaping_conditions(t) for t in PAPER_TASKS}, shaping_steps, 10,
             {"smoke": SMOKE, "quick": _quick(3, 100_000)}, videos=True),
         Experiment(

@@ -32,7 +32,8 @@ from types import MappingProxyType
 
 from train.tasks import TASKS
 
-__all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "SHAPING_BASE", "SHAPING_SCHEDULE", "TUNED"]
+__all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "SHAPING_BASE", "SHAPING_SCHEDULE",
+           "SPARSE_EQUIVALENT", "TUNED"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -65,3 +66,10 @@ SHAPING_BASE = MappingProxyType({
 PAPER_STEPS = MappingProxyType({"salad": 1_000_000, "hunting": 1_500_000, "scavenging": 1_250_000,
                                 "factory": 1_250_000, "walled-salad": 1_000_000, "foodcollector": 1_000_000})
 """Steps per seed of the dynamism experiments (original: 2 000 / 3 000 / 2 500 epochs of 500 steps)."""
+
+SPARSE_EQUIVALENT = MappingProxyType({"scavenging": frozenset({"waypoint", "subgoal", "one_time"})})
+"""Reward modes that are the sparse reward itself on a task: scavenging has no intermediate stage, so every mode
+but ``distance`` rewards exactly what ``sparse`` does (a uniform random policy's observations and rewards are
+identical under them; `tests/train/experiments/test_exp_data.py` measures it on every grid task). An arm that
+differs from another only by such a mode would repeat that arm's run step for step, so the experiments leave it
+out and say so."""

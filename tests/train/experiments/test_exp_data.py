@@ -5,11 +5,23 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import gymnasium as gym
+import numpy as np
 import pytest
 
 from train.config import TrainConfig
-from train.experiments.catalog import BUDGETS, EXPERIMENTS, SHAPING_SCHEDULE, get_experiment, job_config
+from train.experiments.catalog import (
+    BUDGETS,
+    DYNAMIC_P,
+    EXPERIMENTS,
+    GRID_TASKS,
+    SHAPING_SCHEDULE,
+    SPARSE_EQUIVALENT,
+    get_experiment,
+    job_config,
+)
 from train.experiments.sweep import plan
+from train.tasks import get_task
 
 REPO = Path(__file__).resolve().parents[3]
 
@@ -87,8 +99,9 @@ def test_shaping_conditions_follow_the_paper():
     assert SHAPING_SCHEDULE["salad"] == "linear:1:0:280000"  # the original (40000, 20000) window on 8x8
     for task, conds in exp.conditions.items():
         names = [c.name for c in conds]
-        expected = (["env-shaping-sparse", "no-shaping"] if task == "foodcollector" else
-                    ["env-shaping-sparse", "env-shaping-subgoal", "distance-reward", "one-time-reward", "no-shaping"])
+        expected = {"foodcollector": ["env-shaping-sparse", "no-shaping"],
+                    "scavenging": ["env-shaping-sparse", "distance-reward", "no-shaping"]}.get(
+            task, ["env-shaping-sparse", "env-shaping-subgoal", "distance-reward", "one-time-reward", "no-shaping"])
         assert names == expected, task
         for c in conds:
             assert c.overrides["reset_free"] is True
@@ -222,7 +235,7 @@ def test_dynamism_waypoint_is_fig_4_with_the_released_reward():
     waypoint reward, and nothing else changed.
     """
     waypoint, fig4 = get_experiment("dynamism-waypoint"), get_experiment("dynamism")
-    assert waypoint.tasks == ("hunting", "scavenging", "factory")
+    assert waypoint.tasks == ("hunting", "factory")  # scavenging's waypoint reward is its sparse one
     for task in waypoint.tasks:
         ours = {c.name: c for c in waypoint.conditions[task]}
         assert list(ours) == [c.name for c in fig4.conditions[task]]
@@ -274,3 +287,28 @@ def test_shaping_no_shaping_salad_is_the_sparse_sweeps_p0_05_run_longer():
     assert (p005.run.steps, ours["no-shaping"].run.steps) == (1_000_000, 1_250_000)
     assert ours["no-shaping"].replace(steps=p005.run.steps) == p005
     assert all(cfg.replace(steps=p005.run.steps) != p005 for name, cfg in ours.items() if name != "no-shaping")
+
+
+def _random_policy_stream(task: str, reward: str, steps: int = 20_000) -> tuple[np.ndarray, np.ndarray]:
+    """Observations and rewards of a uniform random policy in ``task``'s non-episodic world, shaped and dynamic."""
+    env = gym.make(get_task(task).env_id, reward=reward, reset_free=True, dynamism=DYNAMIC_P[task],
+                   shaping=SHAPING_SCHEDULE[task]).unwrapped
+    obs, _ = env.reset(seed=5)
+    actions = np.random.default_rng(0).integers(env.action_space.n, size=steps)
+    stream = [env.step(int(a))[:2] for a in actions]
+    return np.stack([obs, *(o for o, _ in stream)]), np.array([r for _, r in stream])
+
+
+@pytest.mark.parametrize("task", GRID_TASKS)
+def test_the_modes_called_sparse_equivalent_are_exactly_those_that_reward_as_sparse_does(task):
+    """`SPARSE_EQUIVALENT` lists, per task, the reward modes under which a random policy sees the very observations
+    and rewards of the sparse mode, and no other: the arms the experiments leave out would repeat a listed arm.
+    """
+    sparse = _random_policy_stream(task, "sparse")
+    assert sparse[1].any(), task  # the stream reaches rewards, so equal streams say something
+    same = set()
+    for mode in ("waypoint", "subgoal", "one_time", "distance"):
+        obs, rewards = _random_policy_stream(task, mode)
+        if np.array_equal(obs, sparse[0]) and np.array_equal(rewards, sparse[1]):
+            same.add(mode)
+    assert same == set(SPARSE_EQUIVALENT.get(task, ())), task
