@@ -285,16 +285,19 @@ def test_window_side_endpoints():
         assert engine.window_side(n, 0.0) == 2 * n
 
 
-def test_linear_schedule_widens_the_window_by_one_cell_every_20000_steps_on_8x8():
-    rules = gridtasks.SaladEnv(shaping="linear:1:0:280000").rules[0]
+@pytest.mark.parametrize("schedule, period", [("linear:1:0:280000", 20000), ("linear:1:0:560000", 40000),
+                                              ("linear:1:0:840000", 60000)])
+def test_linear_schedules_widen_the_window_as_the_released_salad_windows_on_8x8(schedule, period):
+    """The original's window side is (t + 2 * period) // period, capped at the whole grid (16 on 8x8)."""
+    rules = gridtasks.SaladEnv(shaping=schedule).rules[0]
     for k in range(15):
-        t = 20000 * k
+        t = period * k
         s = engine.shaping_strength(rules, float(t))
         assert engine.window_side(8, s) == 2 + k, t
         if k > 0:
             s_before = engine.shaping_strength(rules, float(t - 1))
             assert engine.window_side(8, s_before) == 1 + k, t - 1
-    for t in (280000, 300000, 10**7):
+    for t in (14 * period, 15 * period, 10**7):
         assert engine.window_side(8, engine.shaping_strength(rules, float(t))) == 16
 
 

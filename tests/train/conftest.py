@@ -36,6 +36,7 @@ SMOKE_TASKS = {
     "dynamism-sweep": ["salad"],
     "dynamism-sweep-waypoint": None,
     "shaping": ["hunting"],
+    "shaping-gap": None,
     "rnd": None,
     "walls": None,
     "measure": ["factory"],

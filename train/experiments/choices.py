@@ -32,8 +32,8 @@ from types import MappingProxyType
 
 from train.tasks import TASKS
 
-__all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "SHAPING_BASE", "SHAPING_SCHEDULE",
-           "SPARSE_EQUIVALENT", "TUNED"]
+__all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE",
+           "SHAPING_SCHEDULE", "SPARSE_EQUIVALENT", "TUNED"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -50,6 +50,12 @@ SHAPING_SCHEDULE = MappingProxyType({
     "factory": "linear:0.2:0:400000", "walled-salad": "linear:1:0:360000", "foodcollector": "linear:1:0:280000",
 })
 """Environment-shaping schedule of each task, in the paper's clock (see the module docstring)."""
+
+RELEASED_SALAD_SCHEDULES = MappingProxyType({"280k": "linear:1:0:280000", "560k": "linear:1:0:560000",
+                                             "840k": "linear:1:0:840000"})
+"""The released salad shaping script's three spawn windows, (40 000, 20 000), (80 000, 40 000) and (120 000, 60 000):
+on 8x8 each widens from 2 cells by one cell per period, to the whole grid after 14 periods. Fig. 5 uses the first
+(`SHAPING_SCHEDULE`); the paper does not say which its figure shows."""
 
 TUNED = MappingProxyType({"salad": MappingProxyType({"lr": 3e-4})})
 """Trainer settings every experiment uses for a task instead of `TrainConfig`'s defaults (the original

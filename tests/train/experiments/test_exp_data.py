@@ -15,6 +15,7 @@ from train.experiments.catalog import (
     DYNAMIC_P,
     EXPERIMENTS,
     GRID_TASKS,
+    RELEASED_SALAD_SCHEDULES,
     SHAPING_SCHEDULE,
     SPARSE_EQUIVALENT,
     get_experiment,
@@ -312,3 +313,18 @@ def test_the_modes_called_sparse_equivalent_are_exactly_those_that_reward_as_spa
         if np.array_equal(obs, sparse[0]) and np.array_equal(rewards, sparse[1]):
             same.add(mode)
     assert same == set(SPARSE_EQUIVALENT.get(task, ())), task
+
+
+def test_shaping_gap_arms_are_fig_5s_salad_arms_with_one_setting_changed():
+    """Each `shaping-gap` arm builds Fig. 5's salad env-shaping (sparse) or no-shaping config with only the named
+    setting changed: the released script's longer spawn windows, or its learning rate.
+    """
+    gap, fig5 = get_experiment("shaping-gap"), get_experiment("shaping")
+    ours = {c.name: job_config(gap, "salad", c, gap.budget("paper")) for c in gap.conditions["salad"]}
+    theirs = {c.name: job_config(fig5, "salad", c, fig5.budget("paper")) for c in fig5.conditions["salad"]}
+    shaped, plain = theirs["env-shaping-sparse"], theirs["no-shaping"]
+    assert ours["env-shaping-560k"] == shaped.replace(shaping=RELEASED_SALAD_SCHEDULES["560k"])
+    assert ours["env-shaping-840k"] == shaped.replace(shaping=RELEASED_SALAD_SCHEDULES["840k"])
+    assert ours["env-shaping-lr1e-4"] == shaped.replace(lr=1e-4)
+    assert ours["no-shaping-lr1e-4"] == plain.replace(lr=1e-4)
+    assert (shaped.dqn.lr, shaped.env.shaping) == (3e-4, RELEASED_SALAD_SCHEDULES["280k"])
