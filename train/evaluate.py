@@ -54,6 +54,14 @@ class EvalResult:
     divergence gauge, see `train.experiments.report.stats.diverged`."""
     solved: np.ndarray
     """(K, R) whether each rollout was solved."""
+    steps_to_solve: np.ndarray
+    """(K, R) environment steps each rollout took to solve its layout, -1 where it did not."""
+
+    @property
+    def median_steps_to_solve(self) -> np.ndarray:
+        """(K,) median steps to solve over each agent's solved rollouts (NaN where none was solved)."""
+        return np.array([np.median(row[row >= 0]) if (row >= 0).any() else np.nan for row in self.steps_to_solve],
+                        dtype=np.float64)
 
 
 class Evaluator:
@@ -81,10 +89,11 @@ class Evaluator:
         obs, _ = self.env.reset(seed=self.layout_seeds)
         live = np.ones(k * r, dtype=bool)
         solved = np.zeros(k * r, dtype=bool)
+        steps_to_solve = np.full(k * r, -1)
         returns = np.zeros(k * r)
         max_q = torch.zeros(k)
         signalled = None
-        for _ in range(self.horizon):
+        for t in range(self.horizon):
             if stop_requested():  # finish within a second of a signal (then checkpoint), or give up
                 signalled = signalled or time.monotonic()
                 if time.monotonic() - signalled > STOP_GRACE_S:
@@ -92,12 +101,15 @@ class Evaluator:
             actions = self._actions(agent, obs, rngs, max_q)
             obs, reward, terminated, truncated, info = self.env.step(actions)
             returns += np.where(live, reward, 0.0)
-            solved |= live & np.asarray(info.get("solved", np.zeros(k * r, dtype=bool)), dtype=bool)
+            just_solved = live & ~solved & np.asarray(info.get("solved", np.zeros(k * r, dtype=bool)), dtype=bool)
+            solved |= just_solved
+            steps_to_solve[just_solved] = t + 1
             live &= ~(terminated | truncated)
             if not live.any():
                 break
         solved = solved.reshape(k, r)
-        return EvalResult(solved.mean(1), returns.reshape(k, r).mean(1), max_q.numpy().astype(np.float64), solved)
+        return EvalResult(solved.mean(1), returns.reshape(k, r).mean(1), max_q.numpy().astype(np.float64), solved,
+                          steps_to_solve.reshape(k, r))
 
     def _actions(self, agent: ActionValues, obs: np.ndarray, rngs: Sequence[np.random.Generator],
                  max_q: torch.Tensor) -> np.ndarray:

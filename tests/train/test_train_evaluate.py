@@ -59,3 +59,29 @@ def test_layouts_can_be_chosen():
         evaluator.close()
     with pytest.raises(ValueError, match="one per rollout"):
         Evaluator(get_task("salad").env_id, kwargs, 1, 2, 1.0, info.num_actions, layout_seeds=[7])
+
+
+def test_steps_to_solve_count_the_steps_a_greedy_rollout_takes():
+    """A learned salad policy's steps to solve each validation layout equal those of the same policy stepped by
+    hand in a single test-MDP env (greedy, so no exploration draw differs); unsolved layouts read -1.
+    """
+    import gymnasium as gym
+    import numpy as np
+
+    from ecology import validation_seeds
+    from train.policy import load_policy, shipped_policy
+
+    policy = load_policy(shipped_policy("salad"))
+    result = policy.evaluate(rollouts=12, epsilon=0.0)
+    steps = result.steps_to_solve[0]
+    assert steps.shape == (12,) and ((steps >= 1) == result.solved[0]).all() and (steps[~result.solved[0]] == -1).all()
+    assert 0 < result.solved[0].sum() < 12  # both kinds of layout are checked
+    for seed, expected in zip(validation_seeds(12), steps):
+        env = gym.make(get_task("salad").env_id, **policy.test_kwargs).unwrapped
+        obs, _ = env.reset(seed=int(seed))
+        taken, done, info = 0, False, {}
+        while not done:
+            obs, _, terminated, truncated, info = env.step(policy.act(obs))
+            taken, done = taken + 1, terminated or truncated
+        assert (taken if info.get("solved") else -1) == expected, seed
+    assert result.median_steps_to_solve[0] == np.median(steps[steps >= 0])

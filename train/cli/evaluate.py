@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from train.cli.common import positive, probability, user_errors
@@ -54,7 +55,9 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP:")
     for name, r in results.items():
         how = f"epsilon {eps:g}" if name == "policy" else "uniform random"
-        print(f"  {name:>6s} ({how}): success {100 * r.success[0]:.0f} %, mean return {r.returns[0]:.1f}")
+        steps = float(r.median_steps_to_solve[0])
+        speed = "" if math.isnan(steps) else f", median {steps:g} steps to solve (solved layouts)"
+        print(f"  {name:>6s} ({how}): success {100 * r.success[0]:.0f} %, mean return {r.returns[0]:.1f}{speed}")
     return 0
 
 
