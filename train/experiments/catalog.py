@@ -302,7 +302,7 @@ def _shaping_gap() -> Experiment:
                        {**base, "shaping": SHAPING_SCHEDULE["salad"], "lr": 1e-4}),
              Condition("no-shaping-lr1e-4", "no shaping, lr 1e-4 (released scripts)", {**base, "lr": 1e-4})]
     return Experiment(
-        "shaping-gap", "Fig. 5 (salad), settings", "Why environment shaping does not help salad",
+        "shaping-gap", "Fig. 5 (salad), settings", "Salad's environment shaping with the released script's settings",
         "Fig. 5's salad environment shaping (sparse reward) did no better than no shaping: its window has widened to "
         "the whole grid by 280 000 steps, while exploration is still mostly random. Here the released shaping "
         "script's two longer windows (full grid at 560 000 and 840 000 steps) and its learning rate, 1e-4 (with no "
