@@ -45,17 +45,23 @@ class ActionValues(Protocol):
 class EvalResult:
     """Per-agent evaluation results."""
 
-    success: np.ndarray
-    """(K,) fraction of rollouts solved."""
     returns: np.ndarray
     """(K,) mean undiscounted return per rollout."""
     max_q: np.ndarray
     """(K,) largest |Q| of any action in any state the rollouts visited (NaN if a value is not finite): a
     divergence gauge, see `train.experiments.report.stats.diverged`."""
-    solved: np.ndarray
-    """(K, R) whether each rollout was solved."""
     steps_to_solve: np.ndarray
     """(K, R) environment steps each rollout took to solve its layout, -1 where it did not."""
+
+    @property
+    def solved(self) -> np.ndarray:
+        """(K, R) whether each rollout was solved."""
+        return self.steps_to_solve >= 0
+
+    @property
+    def success(self) -> np.ndarray:
+        """(K,) fraction of rollouts solved."""
+        return self.solved.mean(1)
 
     @property
     def median_steps_to_solve(self) -> np.ndarray:
@@ -107,9 +113,7 @@ class Evaluator:
             live &= ~(terminated | truncated)
             if not live.any():
                 break
-        solved = solved.reshape(k, r)
-        return EvalResult(solved.mean(1), returns.reshape(k, r).mean(1), max_q.numpy().astype(np.float64), solved,
-                          steps_to_solve.reshape(k, r))
+        return EvalResult(returns.reshape(k, r).mean(1), max_q.numpy().astype(np.float64), steps_to_solve.reshape(k, r))
 
     def _actions(self, agent: ActionValues, obs: np.ndarray, rngs: Sequence[np.random.Generator],
                  max_q: torch.Tensor) -> np.ndarray:
