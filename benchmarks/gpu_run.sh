@@ -6,28 +6,49 @@
 #
 # It installs the carried wheels (`make wheels`) where gymnasium or pymunk is missing, runs `ecorl run ARGS --device $DEVICE
 # (cuda) --out results` under `timeout -s INT`, so every trainer stops at the end of an epoch with a
-# checkpoint, and packs what is small (config.json, metrics.csv, done.json, visits/, policies/, never a
-# checkpoint) into $OUT/results.tar.gz: one file, as the machine's return path wants. The next chunk, in the
-# same lease, resumes from the checkpoints left in ./results (run it from the repository's root: results/ is
-# ignored there, so the machine keeps it between commands while it stays up). Back here, unpack with
-# `tar -xzf FILES_AT/results.tar.gz` and ship like docs/results/paper/README.md says.
+# checkpoint, and packs results/ into $OUT/results.tar.gz (split into results.tar.gz.00, .01, ... of 15 MiB where
+# it is larger, as the machine's return path wants): config.json, metrics.csv, done.json, visits/, policies/, and
+# the checkpoints of the runs not yet finished (gzip takes their replays from about 120 MB to about 5 MB), never a
+# finished run's checkpoint. The next chunk, in the same lease, resumes from ./results (run it from the
+# repository's root: results/ is ignored there, so the machine keeps it between commands while it stays up). A
+# later lease resumes from the archive: copy it into the ignored folder gpu-state/ here, carry gpu-state, and
+# this script unpacks it where there is no results/ yet. Back here, unpack with
+# `cat FILES_AT/results.tar.gz* | tar -xz` and ship like docs/results/paper/README.md says (no checkpoints).
 set -uo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 if ! python3 -c "import gymnasium, pymunk" 2> /dev/null && compgen -G "$root/wheels/*.whl" > /dev/null; then
     python3 -m pip install -q --no-index --no-deps --no-compile --upgrade --target /tmp/site "$root"/wheels/*.whl || exit 1
-    export PYTHONPATH="/tmp/site:$root"
-else
-    export PYTHONPATH="$root"
+    export PYTHONPATH="/tmp/site:$root${PYTHONPATH:+:$PYTHONPATH}"
+else  # keep the caller's path: gymnasium may be importable only through it (installed by an earlier step)
+    export PYTHONPATH="$root${PYTHONPATH:+:$PYTHONPATH}"
 fi
 export PYTHONUNBUFFERED=1
+
+pack_results() {  # results/ into $1/results.tar.gz[.NN]: no locks, no progress files, no finished run's checkpoint
+    local finished
+    finished=$(mktemp)
+    rm -f "$1"/results.tar.gz*
+    find results -name done.json 2> /dev/null | sed 's|/done.json$|/checkpoint*|' > "$finished"
+    tar -czf "$1/results.tar.gz" --exclude='*.lock' --exclude='.lock' --exclude='progress.json' \
+        -X "$finished" results || return 1
+    rm -f "$finished"
+    if (( $(stat -c %s "$1/results.tar.gz") > 15 * 1024 * 1024 )); then
+        split -b 15M -d -a 2 "$1/results.tar.gz" "$1/results.tar.gz." && rm "$1/results.tar.gz"
+    fi
+    echo "== packed: $(du -ch "$1"/results.tar.gz* | tail -1 | cut -f1) in $(ls "$1"/results.tar.gz* | wc -l) file(s)"
+}
 out="${OUT:-gpu-out}"
 mkdir -p "$out"
+state="${STATE:-gpu-state}"  # an earlier lease's archive, carried here
+if [[ ! -e results ]] && compgen -G "$state/results.tar.gz*" > /dev/null; then
+    cat "$state"/results.tar.gz* | tar -xzf - || exit 1
+    echo "== resumed from $state: $(find results -name checkpoint.npz | wc -l) unfinished runs"
+fi
 began=$(date +%s)
 timeout -s INT "${CHUNK_S:-510}" python3 -m train.cli run "$@" --device "${DEVICE:-cuda}" --out results --no-progress
 code=$?
 echo "== chunk: exit $code after $(( $(date +%s) - began )) s"
-tar -czf "$out/results.tar.gz" --exclude='checkpoint*' --exclude='*.lock' --exclude='.lock' \
-    --exclude='progress.json' results
+pack_results "$out"
 python3 -m train.cli run "$@" --device "${DEVICE:-cuda}" --out results --dry-run | tee "$out/status.txt"
 grep -q -v '^\[  done\]' "$out/status.txt" && echo "== not finished: run this again" || echo "== all done"
 exit $code

@@ -33,3 +33,67 @@ def test_chunks_resume_until_done_and_bring_back_one_small_archive_without_check
     assert {f"{run}/metrics.csv", f"{run}/config.json", f"{run}/done.json", f"{run}/policies/best.npz"} <= set(names)
     assert not [n for n in names if "checkpoint" in n or n.endswith(".lock")], names
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["results.tar.gz", "status.txt"]
+
+
+def test_keeps_the_callers_python_path(tmp_path):
+    """On a lent machine an earlier step may have installed gymnasium into a folder named by PYTHONPATH; the
+    script must add the repository to that path, not replace it (a lent run once lost its gymnasium so).
+    """
+    site = tmp_path / "site"
+    site.mkdir()
+    seen = tmp_path / "seen"  # each Python that imports from the caller's folder writes its PYTHONPATH here
+    (site / "sitecustomize.py").write_text(
+        f"import os\nwith open({str(seen)!r}, 'a') as f:\n    f.write(os.environ['PYTHONPATH'] + '\\n')\n")
+    env = {**os.environ, "DEVICE": "cpu", "CHUNK_S": "1", "OUT": str(tmp_path / "out"), "PYTHONPATH": str(site),
+           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    subprocess.run(["bash", str(SCRIPT), "headline", "--budget", "smoke", "--condition", "static-episodic"],
+                   cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    root = str(SCRIPT.parents[1])
+    assert any(root in line.split(os.pathsep) for line in seen.read_text().splitlines())  # the trainer's Pythons
+
+
+def _pack_only(cwd: Path) -> subprocess.CompletedProcess:
+    """The script around an experiment that does not exist: it trains nothing, so only its unpacking and
+    packing of results/ run.
+    """
+    env = {**os.environ, "DEVICE": "cpu", "CHUNK_S": "60", "OUT": str(cwd / "out"),
+           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    return subprocess.run(["bash", str(SCRIPT), "no-such-experiment"], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=120)
+
+
+def test_the_archive_carries_unfinished_checkpoints_to_the_next_lease(tmp_path):
+    lease, later = tmp_path / "lease", tmp_path / "later"
+    unfinished, finished = lease / "results/x/salad/a", lease / "results/x/salad/b"
+    for run in (unfinished, finished):
+        run.mkdir(parents=True)
+        (run / "checkpoint.npz").write_bytes(os.urandom(1000))
+        (run / "metrics.csv").write_text("step\n")
+        (run / ".lock").write_text("1")
+    (finished / "done.json").write_text("{}")
+    _pack_only(lease)
+    archive = lease / "out/results.tar.gz"
+    names = set(tarfile.open(archive).getnames())
+    assert "results/x/salad/a/checkpoint.npz" in names  # resumable at the next lease
+    assert "results/x/salad/b/checkpoint.npz" not in names and "results/x/salad/b/done.json" in names
+    assert not [n for n in names if n.endswith(".lock")]
+
+    (later / "gpu-state").mkdir(parents=True)
+    (later / "gpu-state/results.tar.gz").write_bytes(archive.read_bytes())
+    unpacked = _pack_only(later)
+    assert "== resumed from gpu-state: 1 unfinished runs" in unpacked.stdout, unpacked.stdout + unpacked.stderr
+    assert (later / "results/x/salad/a/checkpoint.npz").read_bytes() == (unfinished / "checkpoint.npz").read_bytes()
+
+
+def test_an_archive_too_big_for_one_returned_file_is_split_and_joins_back(tmp_path):
+    run = tmp_path / "results/x/salad/a"
+    run.mkdir(parents=True)
+    (run / "checkpoint.npz").write_bytes(os.urandom(17 * 2**20))  # random bytes: gzip cannot shrink them
+    _pack_only(tmp_path)
+    parts = sorted((tmp_path / "out").glob("results.tar.gz*"))
+    assert [p.name for p in parts] == ["results.tar.gz.00", "results.tar.gz.01"]
+    assert all(p.stat().st_size <= 15 * 2**20 for p in parts)
+    joined = tmp_path / "joined.tar.gz"
+    joined.write_bytes(b"".join(p.read_bytes() for p in parts))
+    member = tarfile.open(joined).extractfile("results/x/salad/a/checkpoint.npz").read()
+    assert member == (run / "checkpoint.npz").read_bytes()
