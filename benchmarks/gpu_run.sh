@@ -3,7 +3,10 @@
 # 510, so that the trainers' clean stop and the packing fit one 10-minute command):
 #
 #     bash benchmarks/gpu_run.sh headline-waypoint --budget paper           # repeat until it says "all done"
+#     bash benchmarks/gpu_run.sh shaping --task scavenging --budget paper + rnd --budget paper   # side by side
 #
+# Runs separated by a lone "+" train side by side, one process each (on a lent H200 four processes summed to
+# about twice one process's agent-steps/s, docs/gpu.md).
 # It installs the carried wheels (`make wheels`) where gymnasium or pymunk is missing, runs `ecorl run ARGS --device $DEVICE
 # (cuda) --out results` under `timeout -s INT`, so every trainer stops at the end of an epoch with a
 # checkpoint, and packs results/ into $OUT/results.tar.gz (split into results.tar.gz.00, .01, ... of 15 MiB where
@@ -44,11 +47,36 @@ if [[ ! -e results ]] && compgen -G "$state/results.tar.gz*" > /dev/null; then
     cat "$state"/results.tar.gz* | tar -xzf - || exit 1
     echo "== resumed from $state: $(find results -name checkpoint.npz | wc -l) unfinished runs"
 fi
+each_spec() {  # call $1 with each run's arguments: the rest of the line, split at the arguments "+"
+    local fn=$1 spec=() arg
+    shift
+    for arg in "$@" +; do
+        if [[ $arg == + ]]; then
+            (( ${#spec[@]} )) && "$fn" "${spec[@]}"
+            spec=()
+        else
+            spec+=("$arg")
+        fi
+    done
+}
+pids=()
+start_run() {
+    timeout -s INT "${CHUNK_S:-510}" python3 -m train.cli run "$@" --device "${DEVICE:-cuda}" --out results \
+        --no-progress &
+    pids+=($!)
+}
+print_status() { python3 -m train.cli run "$@" --device "${DEVICE:-cuda}" --out results --dry-run; }
+
 began=$(date +%s)
-timeout -s INT "${CHUNK_S:-510}" python3 -m train.cli run "$@" --device "${DEVICE:-cuda}" --out results --no-progress
-code=$?
+each_spec start_run "$@"
+code=0
+for pid in "${pids[@]}"; do
+    wait "$pid"
+    status=$?
+    (( code == 0 )) && code=$status  # the first failure (124: stopped at the chunk's end) is the script's
+done
 echo "== chunk: exit $code after $(( $(date +%s) - began )) s"
 pack_results "$out"
-python3 -m train.cli run "$@" --device "${DEVICE:-cuda}" --out results --dry-run | tee "$out/status.txt"
+each_spec print_status "$@" | tee "$out/status.txt"
 grep -q -v '^\[  done\]' "$out/status.txt" && echo "== not finished: run this again" || echo "== all done"
 exit $code

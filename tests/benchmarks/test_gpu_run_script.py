@@ -97,3 +97,17 @@ def test_an_archive_too_big_for_one_returned_file_is_split_and_joins_back(tmp_pa
     joined.write_bytes(b"".join(p.read_bytes() for p in parts))
     member = tarfile.open(joined).extractfile("results/x/salad/a/checkpoint.npz").read()
     assert member == (run / "checkpoint.npz").read_bytes()
+
+
+def test_runs_joined_by_a_plus_train_side_by_side_and_report_together(tmp_path):
+    env = {**os.environ, "DEVICE": "cpu", "CHUNK_S": "250", "OUT": str(tmp_path / "out"),
+           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    args = ["headline", "--budget", "smoke", "--condition", "static-episodic", "+",
+            "headline", "--budget", "smoke", "--condition", "static-reset-free"]
+    done = subprocess.run(["bash", str(SCRIPT), *args], cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    status = (tmp_path / "out/status.txt").read_text().splitlines()
+    assert [line.split(":")[0] for line in status] == ["[  done] headline/salad/static-episodic",
+                                                       "[  done] headline/salad/static-reset-free"]
+    assert "== all done" in done.stdout
