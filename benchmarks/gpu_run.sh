@@ -78,5 +78,11 @@ done
 echo "== chunk: exit $code after $(( $(date +%s) - began )) s"
 pack_results "$out"
 each_spec print_status "$@" | tee "$out/status.txt"
-grep -q -v '^\[  done\]' "$out/status.txt" && echo "== not finished: run this again" || echo "== all done"
+if (( code != 0 && code != 124 )); then  # 124: stopped at the chunk's end, as planned
+    echo "== failed: exit $code (the error is above)"
+elif [[ ! -s "$out/status.txt" ]] || grep -q -v '^\[  done\]' "$out/status.txt"; then
+    echo "== not finished: run this again"
+else
+    echo "== all done"
+fi
 exit $code

@@ -111,3 +111,10 @@ def test_runs_joined_by_a_plus_train_side_by_side_and_report_together(tmp_path):
     assert [line.split(":")[0] for line in status] == ["[  done] headline/salad/static-episodic",
                                                        "[  done] headline/salad/static-reset-free"]
     assert "== all done" in done.stdout
+
+
+def test_a_failing_run_is_reported_as_failed_not_done(tmp_path):
+    failed = _pack_only(tmp_path)  # an experiment that does not exist
+    assert failed.returncode not in (0, 124)
+    assert "== failed" in failed.stdout and "all done" not in failed.stdout
+    assert "no-such-experiment" in failed.stderr  # ecorl's own message names it
