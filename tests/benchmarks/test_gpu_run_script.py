@@ -11,27 +11,33 @@ import tarfile
 from pathlib import Path
 
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "gpu_run.sh"
+EPISODIC = ["headline", "--budget", "smoke", "--condition", "static-episodic"]
+RESET_FREE = ["headline", "--budget", "smoke", "--condition", "static-reset-free"]
 
 
-def _chunk(cwd: Path, seconds: int) -> subprocess.CompletedProcess:
+def _run(cwd: Path, args: list[str], seconds: int = 250, **env: str) -> subprocess.CompletedProcess:
+    """The script in ``cwd`` on the CPU, a chunk of at most ``seconds``."""
     env = {**os.environ, "DEVICE": "cpu", "CHUNK_S": str(seconds), "OUT": str(cwd / "out"),
-           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
-    return subprocess.run(["bash", str(SCRIPT), "headline", "--budget", "smoke", "--condition", "static-episodic"],
-                          cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}", **env}
+    return subprocess.run(["bash", str(SCRIPT), *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=300)
 
 
-def test_chunks_resume_until_done_and_bring_back_one_small_archive_without_checkpoints(tmp_path):
-    first = _chunk(tmp_path, 1)  # stopped at once: an interrupted run, or none started yet
+def test_chunks_resume_until_done_side_by_side_and_bring_back_one_small_archive(tmp_path):
+    first = _run(tmp_path, EPISODIC, seconds=1)  # stopped at once: an interrupted run, or none started yet
     assert first.returncode == 124, first.stdout + first.stderr
     assert "== not finished: run this again" in first.stdout
-    finished = _chunk(tmp_path, 250)
+    finished = _run(tmp_path, [*EPISODIC, "+", *RESET_FREE])  # a lone "+": two runs side by side
     assert finished.returncode == 0, finished.stdout + finished.stderr
-    assert "[  done] headline/salad/static-episodic" in finished.stdout and "== all done" in finished.stdout
+    status = (tmp_path / "out/status.txt").read_text().splitlines()
+    assert [line.split(":")[0] for line in status] == ["[  done] headline/salad/static-episodic",
+                                                       "[  done] headline/salad/static-reset-free"]
+    assert "== all done" in finished.stdout
     assert (tmp_path / "results/headline/salad/static-episodic/checkpoint.npz").exists()  # kept for later chunks
     names = tarfile.open(tmp_path / "out/results.tar.gz").getnames()
     run = "results/headline/salad/static-episodic"
     assert {f"{run}/metrics.csv", f"{run}/config.json", f"{run}/done.json", f"{run}/policies/best.npz"} <= set(names)
-    assert not [n for n in names if "checkpoint" in n or n.endswith(".lock")], names
+    assert not [n for n in names if "checkpoint" in n or n.endswith(".lock")], names  # both runs finished
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["results.tar.gz", "status.txt"]
 
 
@@ -44,25 +50,12 @@ def test_keeps_the_callers_python_path(tmp_path):
     seen = tmp_path / "seen"  # each Python that imports from the caller's folder writes its PYTHONPATH here
     (site / "sitecustomize.py").write_text(
         f"import os\nwith open({str(seen)!r}, 'a') as f:\n    f.write(os.environ['PYTHONPATH'] + '\\n')\n")
-    env = {**os.environ, "DEVICE": "cpu", "CHUNK_S": "1", "OUT": str(tmp_path / "out"), "PYTHONPATH": str(site),
-           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
-    subprocess.run(["bash", str(SCRIPT), "headline", "--budget", "smoke", "--condition", "static-episodic"],
-                   cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    _run(tmp_path, EPISODIC, seconds=1, PYTHONPATH=str(site))
     root = str(SCRIPT.parents[1])
     assert any(root in line.split(os.pathsep) for line in seen.read_text().splitlines())  # the trainer's Pythons
 
 
-def _pack_only(cwd: Path) -> subprocess.CompletedProcess:
-    """The script around an experiment that does not exist: it trains nothing, so only its unpacking and
-    packing of results/ run.
-    """
-    env = {**os.environ, "DEVICE": "cpu", "CHUNK_S": "60", "OUT": str(cwd / "out"),
-           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
-    return subprocess.run(["bash", str(SCRIPT), "no-such-experiment"], cwd=cwd, env=env, capture_output=True,
-                          text=True, timeout=120)
-
-
-def test_the_archive_carries_unfinished_checkpoints_to_the_next_lease(tmp_path):
+def test_unfinished_checkpoints_travel_to_the_next_lease_and_a_failing_run_says_so(tmp_path):
     lease, later = tmp_path / "lease", tmp_path / "later"
     unfinished, finished = lease / "results/x/salad/a", lease / "results/x/salad/b"
     for run in (unfinished, finished):
@@ -71,7 +64,10 @@ def test_the_archive_carries_unfinished_checkpoints_to_the_next_lease(tmp_path):
         (run / "metrics.csv").write_text("step\n")
         (run / ".lock").write_text("1")
     (finished / "done.json").write_text("{}")
-    _pack_only(lease)
+    failed = _run(lease, ["no-such-experiment"])  # trains nothing: only the packing runs
+    assert failed.returncode not in (0, 124)
+    assert "== failed" in failed.stdout and "all done" not in failed.stdout
+    assert "no-such-experiment" in failed.stderr  # ecorl's own message names it
     archive = lease / "out/results.tar.gz"
     names = set(tarfile.open(archive).getnames())
     assert "results/x/salad/a/checkpoint.npz" in names  # resumable at the next lease
@@ -80,7 +76,7 @@ def test_the_archive_carries_unfinished_checkpoints_to_the_next_lease(tmp_path):
 
     (later / "gpu-state").mkdir(parents=True)
     (later / "gpu-state/results.tar.gz").write_bytes(archive.read_bytes())
-    unpacked = _pack_only(later)
+    unpacked = _run(later, ["no-such-experiment"])
     assert "== resumed from gpu-state: 1 unfinished runs" in unpacked.stdout, unpacked.stdout + unpacked.stderr
     assert (later / "results/x/salad/a/checkpoint.npz").read_bytes() == (unfinished / "checkpoint.npz").read_bytes()
 
@@ -89,7 +85,7 @@ def test_an_archive_too_big_for_one_returned_file_is_split_and_joins_back(tmp_pa
     run = tmp_path / "results/x/salad/a"
     run.mkdir(parents=True)
     (run / "checkpoint.npz").write_bytes(os.urandom(17 * 2**20))  # random bytes: gzip cannot shrink them
-    _pack_only(tmp_path)
+    _run(tmp_path, ["no-such-experiment"])
     parts = sorted((tmp_path / "out").glob("results.tar.gz*"))
     assert [p.name for p in parts] == ["results.tar.gz.00", "results.tar.gz.01"]
     assert all(p.stat().st_size <= 15 * 2**20 for p in parts)
@@ -97,24 +93,3 @@ def test_an_archive_too_big_for_one_returned_file_is_split_and_joins_back(tmp_pa
     joined.write_bytes(b"".join(p.read_bytes() for p in parts))
     member = tarfile.open(joined).extractfile("results/x/salad/a/checkpoint.npz").read()
     assert member == (run / "checkpoint.npz").read_bytes()
-
-
-def test_runs_joined_by_a_plus_train_side_by_side_and_report_together(tmp_path):
-    env = {**os.environ, "DEVICE": "cpu", "CHUNK_S": "250", "OUT": str(tmp_path / "out"),
-           "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
-    args = ["headline", "--budget", "smoke", "--condition", "static-episodic", "+",
-            "headline", "--budget", "smoke", "--condition", "static-reset-free"]
-    done = subprocess.run(["bash", str(SCRIPT), *args], cwd=tmp_path, env=env, capture_output=True, text=True,
-                          timeout=300)
-    assert done.returncode == 0, done.stdout + done.stderr
-    status = (tmp_path / "out/status.txt").read_text().splitlines()
-    assert [line.split(":")[0] for line in status] == ["[  done] headline/salad/static-episodic",
-                                                       "[  done] headline/salad/static-reset-free"]
-    assert "== all done" in done.stdout
-
-
-def test_a_failing_run_is_reported_as_failed_not_done(tmp_path):
-    failed = _pack_only(tmp_path)  # an experiment that does not exist
-    assert failed.returncode not in (0, 124)
-    assert "== failed" in failed.stdout and "all done" not in failed.stdout
-    assert "no-such-experiment" in failed.stderr  # ecorl's own message names it
