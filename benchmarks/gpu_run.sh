@@ -18,6 +18,11 @@
 # this script unpacks it where there is no results/ yet. Back here, unpack with
 # `cat FILES_AT/results.tar.gz* | tar -xz` and ship like docs/results/paper/README.md says (no checkpoints).
 set -uo pipefail
+if (( $# == 0 )) || [[ $1 == -h || $1 == --help ]]; then
+    echo "usage: bash benchmarks/gpu_run.sh EXPERIMENT [ecorl run options] [+ EXPERIMENT [options]] ..." >&2
+    echo "(one chunk of at most CHUNK_S seconds; see the comment at the top of this script)" >&2
+    exit 2
+fi
 root="$(cd "$(dirname "$0")/.." && pwd)"
 if ! python3 -c "import gymnasium, pymunk" 2> /dev/null && compgen -G "$root/wheels/*.whl" > /dev/null; then
     python3 -m pip install -q --no-index --no-deps --no-compile --upgrade --target /tmp/site "$root"/wheels/*.whl || exit 1
