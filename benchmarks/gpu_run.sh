@@ -78,7 +78,9 @@ code=0
 for pid in "${pids[@]}"; do
     wait "$pid"
     status=$?
-    (( code == 0 )) && code=$status  # the first failure (124: stopped at the chunk's end) is the script's
+    if (( status != 0 && status != 124 )) || (( code == 0 )); then  # a failure outranks 124 (stopped in time)
+        code=$status
+    fi
 done
 echo "== chunk: exit $code after $(( $(date +%s) - began )) s"
 pack_results "$out"
