@@ -38,8 +38,10 @@ pack_results() {  # results/ into $1/results.tar.gz[.NN]: no locks, no progress 
     rm -f "$1"/results.tar.gz*
     find results -name done.json 2> /dev/null | sed 's|/done.json$|/checkpoint*|' > "$finished"
     tar -I "gzip -1" -cf "$1/results.tar.gz" --exclude='*.lock' --exclude='.lock' --exclude='progress.json' \
-        -X "$finished" results || return 1
+        -X "$finished" results
+    local packed=$?
     rm -f "$finished"
+    (( packed == 0 )) || return 1
     if (( $(stat -c %s "$1/results.tar.gz") > 15 * 1024 * 1024 )); then
         split -b 15M -d -a 2 "$1/results.tar.gz" "$1/results.tar.gz." && rm "$1/results.tar.gz"
     fi

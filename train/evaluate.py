@@ -94,7 +94,6 @@ class Evaluator:
                 for s in agent_seeds]
         obs, _ = self.env.reset(seed=self.layout_seeds)
         live = np.ones(k * r, dtype=bool)
-        solved = np.zeros(k * r, dtype=bool)
         steps_to_solve = np.full(k * r, -1)
         returns = np.zeros(k * r)
         max_q = torch.zeros(k)
@@ -107,8 +106,8 @@ class Evaluator:
             actions = self._actions(agent, obs, rngs, max_q)
             obs, reward, terminated, truncated, info = self.env.step(actions)
             returns += np.where(live, reward, 0.0)
-            just_solved = live & ~solved & np.asarray(info.get("solved", np.zeros(k * r, dtype=bool)), dtype=bool)
-            solved |= just_solved
+            solved_now = np.asarray(info.get("solved", np.zeros(k * r, dtype=bool)), dtype=bool)
+            just_solved = live & (steps_to_solve < 0) & solved_now  # -1: not solved before
             steps_to_solve[just_solved] = t + 1
             live &= ~(terminated | truncated)
             if not live.any():
