@@ -11,6 +11,7 @@ import pytest
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import DONE_FILE
 from train.experiments.report import make_report
+from train.experiments.report.figures import HEATMAP_POINTS, heatmap_snapshot_files, visit_snapshots
 from train.experiments.report.paper import format_paper, load_paper, paper_value
 from train.experiments.report.runs import read_metrics
 from train.experiments.report.stats import bootstrap_ci
@@ -224,3 +225,18 @@ def test_a_damaged_metrics_file_is_refused_by_name(tmp_path, text, message):
     with pytest.raises(ReportError, match=message) as caught:
         _columns(tmp_path, text)
     assert "metrics.csv" in str(caught.value) and "--restart" in str(caught.value)
+
+
+@pytest.mark.parametrize("evaluations", [1, 3, 4, 7, 300])
+def test_keeping_only_the_heatmap_snapshots_draws_the_same_heatmaps(tmp_path, evaluations):
+    run_dir = tmp_path / "run"
+    _fake_run(run_dir, 2, [5_000 * (i + 1) for i in range(evaluations)], lambda i, k: 0.0)
+    before = visit_snapshots(run_dir)
+    kept = set(heatmap_snapshot_files(run_dir))
+    for f in (run_dir / "visits").glob("*.npy"):
+        if f not in kept:
+            f.unlink()
+    after = visit_snapshots(run_dir)
+    assert len(before) == min(evaluations, HEATMAP_POINTS) == len(kept)
+    assert [s for s, _ in after] == [s for s, _ in before]
+    assert all(np.array_equal(a, b) for (_, a), (_, b) in zip(after, before))

@@ -172,13 +172,20 @@ def _save_figure(fig, out: Path, dpi: int) -> None:
         _pyplot().close(fig)
 
 
-def visit_snapshots(run_dir: Path, points: int = HEATMAP_POINTS) -> list[tuple[int, np.ndarray]]:
-    """Up to ``points`` evenly spaced (step, counts summed over seeds) snapshots of a run's visitation."""
+def heatmap_snapshot_files(run_dir: Path, points: int = HEATMAP_POINTS) -> list[Path]:
+    """The up to ``points`` evenly spaced files of ``run_dir/visits/`` that the heat-maps draw, oldest first.
+    Picking again among only these files picks the same ones, so a shipped run may keep just them.
+    """
     files = sorted((run_dir / "visits").glob("*.npy"), key=lambda p: int(p.stem))
     if not files:
         return []
     picks = sorted(set(np.round(np.linspace(0, len(files) - 1, points)).astype(int)))
-    return [(int(files[i].stem), _read_visits(files[i]).sum(0)) for i in picks]
+    return [files[i] for i in picks]
+
+
+def visit_snapshots(run_dir: Path, points: int = HEATMAP_POINTS) -> list[tuple[int, np.ndarray]]:
+    """Up to ``points`` evenly spaced (step, counts summed over seeds) snapshots of a run's visitation."""
+    return [(int(f.stem), _read_visits(f).sum(0)) for f in heatmap_snapshot_files(run_dir, points)]
 
 
 def _read_visits(path: Path) -> np.ndarray:
