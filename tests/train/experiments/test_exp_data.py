@@ -328,3 +328,38 @@ def test_shaping_gap_arms_are_fig_5s_salad_arms_with_one_setting_changed():
     assert ours["env-shaping-lr1e-4"] == shaped.replace(lr=1e-4)
     assert ours["no-shaping-lr1e-4"] == plain.replace(lr=1e-4)
     assert (shaped.dqn.lr, shaped.env.shaping) == (3e-4, RELEASED_SALAD_SCHEDULES["280k"])
+
+
+# (experiment, task, condition) pairs that build the very same config: one run stands for both, so the
+# shipped results copy it and the not-yet-run list counts it once (docs/results/paper/README.md).
+SAME_RUNS = [
+    (("shaping", "scavenging", "no-shaping"), ("dynamism", "scavenging", "static-reset-free")),
+    (("shaping", "factory", "no-shaping"), ("dynamism", "factory", "static-reset-free")),
+    (("rnd", "factory", "static"), ("dynamism", "factory", "static-reset-free")),
+    (("rnd", "factory", "dynamic"), ("dynamism", "factory", "dynamic-reset-free")),
+    (("rnd", "factory", "env-shaping"), ("shaping", "factory", "env-shaping-sparse")),
+]
+
+
+def _paper_config(exp_name: str, task: str, condition: str) -> TrainConfig:
+    exp = get_experiment(exp_name)
+    cond = {c.name: c for c in exp.conditions[task]}[condition]
+    return job_config(exp, task, cond, exp.budget("paper"))
+
+
+@pytest.mark.parametrize(("copy", "source"), SAME_RUNS)
+def test_runs_that_stand_for_each_other_build_the_same_config(copy, source):
+    assert _paper_config(*copy) == _paper_config(*source)
+
+
+@pytest.mark.parametrize(("copy", "source"), SAME_RUNS)
+def test_a_shipped_copy_is_its_source_file_for_file(copy, source):
+    """Where both are shipped, the copy holds the source's files unchanged (and where one is, both are)."""
+    root = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
+    copy_dir, source_dir = root.joinpath(*copy), root.joinpath(*source)
+    if not copy_dir.exists():
+        pytest.skip(f"{'/'.join(copy)} is not shipped yet")
+    assert source_dir.exists(), f"{copy_dir} is shipped without its source {source_dir}"
+    files = sorted(p.relative_to(copy_dir) for p in copy_dir.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(source_dir) for p in source_dir.rglob("*") if p.is_file())
+    assert all((copy_dir / f).read_bytes() == (source_dir / f).read_bytes() for f in files)
