@@ -27,6 +27,13 @@ from train.tasks import get_task
 
 REPO = Path(__file__).resolve().parents[3]
 
+
+def _paper_config(exp_name: str, task: str, condition: str) -> TrainConfig:
+    """The config that ``ecorl run EXP_NAME --budget paper`` builds for one condition of one task."""
+    exp = get_experiment(exp_name)
+    cond = {c.name: c for c in exp.conditions[task]}[condition]
+    return job_config(exp, task, cond, exp.budget("paper"))
+
 SPEC_TABLE = {  # name: (paper seeds, {task: steps}) from SPEC's experiment table
     "episodic-vs-reset-free": (10, {"salad": 1_000_000}),
     "dynamism": (10, {"salad": 1_000_000, "hunting": 1_500_000, "scavenging": 1_250_000, "factory": 1_250_000,
@@ -253,10 +260,8 @@ def test_hunting_gap_is_fig_4s_dynamic_non_episodic_hunting_with_another_rate(ar
     """Each `hunting-gap` arm builds Fig. 4's dynamic non-episodic hunting config of its reward with only the
     learning rate changed (from the released scripts' 1e-4 to 3e-4).
     """
-    gap, fig4 = get_experiment("hunting-gap"), get_experiment(fig4_name)
-    ours = job_config(gap, "hunting", {c.name: c for c in gap.conditions["hunting"]}[arm], gap.budget("paper"))
-    fig4_arm = {c.name: c for c in fig4.conditions["hunting"]}["dynamic-reset-free"]
-    theirs = job_config(fig4, "hunting", fig4_arm, fig4.budget("paper"))
+    ours = _paper_config("hunting-gap", "hunting", arm)
+    theirs = _paper_config(fig4_name, "hunting", "dynamic-reset-free")
     assert (theirs.dqn.lr, ours.dqn.lr) == (1e-4, 3e-4)
     assert ours.replace(lr=1e-4) == theirs
 
@@ -272,10 +277,8 @@ def test_lr_sweep_repeats_the_arms_it_shares_a_rate_with():
     for name, (other, other_arm) in {"ep-lr1e-4": ("salad-gap", "ep-lr1e-4"), "rf-lr1e-4": ("salad-gap", "rf-lr1e-4"),
                                      "ep-lr3e-4": ("settings", "ep-h100-waypoint"),
                                      "rf-lr3e-4": ("settings", "rf-waypoint")}.items():
-        exp = get_experiment(other)
-        arm = next(c for c in exp.conditions["salad"] if c.name == other_arm)
         assert job_config(sweep, "salad", arms[name], sweep.budget("paper")) == \
-            job_config(exp, "salad", arm, exp.budget("paper")), name
+            _paper_config(other, "salad", other_arm), name
 
 
 def test_shaping_no_shaping_salad_is_the_sparse_sweeps_p0_05_run_longer():
@@ -283,8 +286,8 @@ def test_shaping_no_shaping_salad_is_the_sparse_sweeps_p0_05_run_longer():
     1 M, nothing else changed (the exploration schedule does not depend on the length): its first 1 M steps
     are a replicate of the shipped p 0.05 run, and every other shaping arm differs from it.
     """
-    shaping, sweep = get_experiment("shaping"), get_experiment("dynamism-sweep")
-    p005 = job_config(sweep, "salad", {c.name: c for c in sweep.conditions["salad"]}["p0.05"], sweep.budget("paper"))
+    shaping = get_experiment("shaping")
+    p005 = _paper_config("dynamism-sweep", "salad", "p0.05")
     ours = {c.name: job_config(shaping, "salad", c, shaping.budget("paper")) for c in shaping.conditions["salad"]}
     assert (p005.run.steps, ours["no-shaping"].run.steps) == (1_000_000, 1_250_000)
     assert ours["no-shaping"].replace(steps=p005.run.steps) == p005
@@ -342,12 +345,6 @@ SAME_RUNS = [
 ]
 
 
-def _paper_config(exp_name: str, task: str, condition: str) -> TrainConfig:
-    exp = get_experiment(exp_name)
-    cond = {c.name: c for c in exp.conditions[task]}[condition]
-    return job_config(exp, task, cond, exp.budget("paper"))
-
-
 @pytest.mark.parametrize(("copy", "source"), SAME_RUNS)
 def test_runs_that_stand_for_each_other_build_the_same_config(copy, source):
     assert _paper_config(*copy) == _paper_config(*source)
@@ -358,7 +355,7 @@ def test_a_shipped_copy_is_its_source_file_for_file(copy, source):
     """Where both are shipped, the copy holds the source's files unchanged (and where one is, both are); it may
     add only the film that its own experiment's report renders.
     """
-    root = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
+    root = REPO / "docs" / "results" / "paper"
     copy_dir, source_dir = root.joinpath(*copy), root.joinpath(*source)
     if not copy_dir.exists():
         pytest.skip(f"{'/'.join(copy)} is not shipped yet")
