@@ -156,3 +156,15 @@ def test_a_shipped_run_is_filmed_from_its_best_policy_file_whatever_the_best_see
     film_best_seed(run, tmp_path / "video.mp4", shipped / "policies" / "best.npz")
     assert json.loads((tmp_path / "video.json").read_text())["seed"] == 7
     assert (tmp_path / "video.mp4").stat().st_size > 1000 and (tmp_path / "filmstrip.png").exists()
+
+
+def test_the_end_of_run_summary_names_the_task_when_a_folder_holds_several():
+    from train.experiments.report.lead import run_summary
+
+    several = run_summary(REFERENCE_DIR / "dynamism")  # hunting, scavenging and factory
+    one = run_summary(REFERENCE_DIR / "headline")  # salad alone
+    assert all(line.startswith(("  hunting, ", "  scavenging, ", "  factory, ")) for line in several[1:]
+               if line.startswith("  "))
+    assert sum(line.startswith("  factory, static, non-episodic: ") for line in several) == 1
+    assert [line for line in one if line.startswith("  ")]
+    assert not any(line.startswith("  salad, ") for line in one)

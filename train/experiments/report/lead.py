@@ -125,16 +125,19 @@ def lead_html(leads: list[Lead], out: Path, table) -> str:
 
 
 def run_summary(path: Path) -> list[str]:
-    """Lines that sum up an experiment directory: each condition's last evaluation and, for the headline
-    experiments, the claim at the paper's budget from the shipped runs.
+    """Lines that sum up an experiment directory: each condition's last evaluation (named with its task
+    when the directory holds several) and, for the headline experiments, the claim at the paper's budget from
+    the shipped runs.
     """
     from train.experiments.report.paper import load_paper
 
     exp = load_experiment(path)
     lines = [f"{exp.name}, this run:"]
+    several_tasks = len({run.task for run in exp.runs}) > 1
     for run in exp.runs:
         ours, learned = summarize(run.values[-1], run.metric)
-        lines.append(f"  {run.label}: {ours} at {int(run.steps[-1]):,} steps, {learned} seeds learned")
+        name = f"{run.task}, {run.label}" if several_tasks else run.label
+        lines.append(f"  {name}: {ours} at {int(run.steps[-1]):,} steps, {learned} seeds learned")
     paper_all = load_paper()
     for name in lead_names([exp.name], path):
         shipped = runs.REFERENCE_DIR / name
