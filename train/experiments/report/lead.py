@@ -133,7 +133,7 @@ def run_summary(path: Path) -> list[str]:
 
     exp = load_experiment(path)
     lines = [f"{exp.name}, this run:"]
-    several_tasks = len({run.task for run in exp.runs}) > 1
+    several_tasks = len(exp.tasks) > 1
     for run in exp.runs:
         ours, learned = summarize(run.values[-1], run.metric)
         name = f"{run.task}, {run.label}" if several_tasks else run.label
