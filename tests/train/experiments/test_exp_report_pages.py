@@ -161,10 +161,10 @@ def test_a_shipped_run_is_filmed_from_its_best_policy_file_whatever_the_best_see
 def test_the_end_of_run_summary_names_the_task_when_a_folder_holds_several():
     from train.experiments.report.lead import run_summary
 
-    several = run_summary(REFERENCE_DIR / "dynamism")  # hunting, scavenging and factory
+    several = run_summary(REFERENCE_DIR / "dynamism")  # hunting, scavenging, factory and the food collector
     one = run_summary(REFERENCE_DIR / "headline")  # salad alone
-    assert all(line.startswith(("  hunting, ", "  scavenging, ", "  factory, ")) for line in several[1:]
-               if line.startswith("  "))
+    assert all(line.startswith(("  hunting, ", "  scavenging, ", "  factory, ", "  foodcollector, "))
+               for line in several[1:] if line.startswith("  "))
     assert sum(line.startswith("  factory, static, non-episodic: ") for line in several) == 1
     assert [line for line in one if line.startswith("  ")]
     assert not any(line.startswith("  salad, ") for line in one)
