@@ -9,15 +9,36 @@
 # about twice one process's agent-steps/s, docs/gpu.md).
 # It installs the carried wheels (`make wheels`) where gymnasium or pymunk is missing, runs `ecorl run ARGS --device $DEVICE
 # (cuda) --out results` under `timeout -s INT`, so every trainer stops at the end of an epoch with a
-# checkpoint, and packs results/ into $OUT/results.tar.gz (split into results.tar.gz.00, .01, ... of 15 MiB where
-# it is larger, as the machine's return path wants): config.json, metrics.csv, done.json, visits/, policies/, and
+# checkpoint, and packs results/ into gpu-stage/results.tar.gz (split into results.tar.gz.00, .01, ... of 15 MiB
+# where it is larger, as the machine's return path wants): config.json, metrics.csv, done.json, visits/, policies/, and
 # the checkpoints of the runs not yet finished (gzip -1 takes a 118 MB one to 5.5 MB), never a
-# finished run's checkpoint. The next chunk, in the same lease, resumes from ./results (run it from the
+# finished run's checkpoint. Into $OUT go at most four parts (60 MiB; a command brings back 64 MiB at most);
+# where there are more, `bash benchmarks/gpu_run.sh --rest`, the next command of the same lease, sends the next
+# four. The next chunk, in the same lease, resumes from ./results (run it from the
 # repository's root: results/ is ignored there, so the machine keeps it between commands while it stays up). A
 # later lease resumes from the archive: copy it into the ignored folder gpu-state/ here, carry gpu-state, and
 # this script unpacks it where there is no results/ yet. Back here, unpack with
 # `cat FILES_AT/results.tar.gz* | tar -xz` and ship like docs/results/paper/README.md says (no checkpoints).
 set -uo pipefail
+out="${OUT:-gpu-out}"
+stage="${STAGE:-gpu-stage}"  # the whole archive, kept on the machine until every part is sent
+send_parts() {  # the next (at most) four unsent parts of the archive into $out: 60 MiB, under the 64 MiB a command returns
+    rm -f "$out"/results.tar.gz*
+    [[ -f "$stage/unsent" ]] || return 1
+    local part
+    head -n 4 "$stage/unsent" | while read -r part; do cp "$stage/$part" "$out/"; done
+    tail -n +5 "$stage/unsent" > "$stage/unsent.next" && mv "$stage/unsent.next" "$stage/unsent"
+    if [[ -s "$stage/unsent" ]]; then
+        echo "== $(wc -l < "$stage/unsent") more part(s) of the archive wait here: run \`bash benchmarks/gpu_run.sh --rest\`" \
+            "next, before the machine goes back"
+    fi
+}
+if [[ ${1:-} == --rest ]]; then
+    mkdir -p "$out"
+    [[ -f "$stage/unsent" ]] || { echo "nothing to send: no chunk has packed an archive here" >&2; exit 2; }
+    send_parts
+    exit 0
+fi
 if (( $# == 0 )) || [[ $1 == -h || $1 == --help ]]; then
     echo "usage: bash benchmarks/gpu_run.sh EXPERIMENT [ecorl run options] [+ EXPERIMENT [options]] ..." >&2
     echo "(one chunk of at most CHUNK_S seconds; see the comment at the top of this script)" >&2
@@ -32,10 +53,11 @@ else  # keep the caller's path: gymnasium may be importable only through it (ins
 fi
 export PYTHONUNBUFFERED=1
 
-pack_results() {  # results/ into $1/results.tar.gz[.NN]: no locks, no progress files, no finished run's checkpoint
+pack_results() {  # results/ into $1/results.tar.gz[.NN] (their names in $1/unsent): no locks, no progress files,
+    # no finished run's checkpoint
     local finished
     finished=$(mktemp)
-    rm -f "$1"/results.tar.gz*
+    rm -f "$1"/results.tar.gz* "$1/unsent"
     find results -name done.json 2> /dev/null | sed 's|/done.json$|/checkpoint*|' > "$finished"
     tar -I "gzip -1" -cf "$1/results.tar.gz" --exclude='*.lock' --exclude='.lock' --exclude='progress.json' \
         -X "$finished" results
@@ -45,10 +67,17 @@ pack_results() {  # results/ into $1/results.tar.gz[.NN]: no locks, no progress 
     if (( $(stat -c %s "$1/results.tar.gz") > 15 * 1024 * 1024 )); then
         split -b 15M -d -a 2 "$1/results.tar.gz" "$1/results.tar.gz." && rm "$1/results.tar.gz"
     fi
-    echo "== packed: $(du -ch "$1"/results.tar.gz* | tail -1 | cut -f1) in $(ls "$1"/results.tar.gz* | wc -l) file(s)"
+    (cd "$1" && ls results.tar.gz*) > "$1/unsent"
+    echo "== packed: $(du -ch "$1"/results.tar.gz* | tail -1 | cut -f1) in $(wc -l < "$1/unsent") file(s)"
+    local unfinished
+    unfinished=$(find results -name checkpoint.npz 2> /dev/null | sed 's|checkpoint.npz$|done.json|' \
+        | while read -r done; do [[ -e $done ]] || echo; done | wc -l)
+    if (( unfinished )); then
+        echo "== $unfinished unfinished runs travel with their checkpoints: a later lease can carry them back in" \
+            "gpu-state/ only if they and the working tree fit 64 MiB together; else resume them on any CPU machine"
+    fi
 }
-out="${OUT:-gpu-out}"
-mkdir -p "$out"
+mkdir -p "$out" "$stage"
 state="${STATE:-gpu-state}"  # an earlier lease's archive, carried here
 if [[ ! -e results ]] && compgen -G "$state/results.tar.gz*" > /dev/null; then
     cat "$state"/results.tar.gz* | tar -xzf - || exit 1
@@ -85,7 +114,7 @@ for pid in "${pids[@]}"; do
     fi
 done
 echo "== chunk: exit $code after $(( $(date +%s) - began )) s"
-pack_results "$out"
+pack_results "$stage"
 each_spec print_status "$@" | tee "$out/status.txt"
 if (( code != 0 && code != 124 )); then  # 124: stopped at the chunk's end, as planned
     echo "== failed: exit $code (the error is above)"
@@ -94,4 +123,5 @@ elif [[ ! -s "$out/status.txt" ]] || grep -q -v '^\[  done\]' "$out/status.txt";
 else
     echo "== all done"
 fi
+send_parts
 exit $code
