@@ -18,7 +18,8 @@
 # repository's root: results/ is ignored there, so the machine keeps it between commands while it stays up). A
 # later lease resumes from the archive: copy it into the ignored folder gpu-state/ here, carry gpu-state, and
 # this script unpacks it where there is no results/ yet. Back here, unpack with
-# `cat FILES_AT/results.tar.gz* | tar -xz` and ship like docs/results/paper/README.md says (no checkpoints).
+# `cat FILES_AT/results.tar.gz* | tar -xz` (--rest's parts after the first four) and ship like
+# docs/results/paper/README.md says (no checkpoints).
 set -uo pipefail
 out="${OUT:-gpu-out}"
 stage="${STAGE:-gpu-stage}"  # the whole archive, kept on the machine until every part is sent
