@@ -23,12 +23,13 @@
 set -uo pipefail
 out="${OUT:-gpu-out}"
 stage="${STAGE:-gpu-stage}"  # the whole archive, kept on the machine until every part is sent
-send_parts() {  # the next (at most) four unsent parts of the archive into $out: 60 MiB, under the 64 MiB a command returns
+parts_per_command=4  # of 15 MiB: 60 MiB, under the 64 MiB a command brings back
+send_parts() {  # the next (at most) $parts_per_command unsent parts of the archive into $out
     rm -f "$out"/results.tar.gz*
     [[ -f "$stage/unsent" ]] || return 1
     local part
-    head -n 4 "$stage/unsent" | while read -r part; do cp "$stage/$part" "$out/"; done
-    tail -n +5 "$stage/unsent" > "$stage/unsent.next" && mv "$stage/unsent.next" "$stage/unsent"
+    head -n "$parts_per_command" "$stage/unsent" | while read -r part; do cp "$stage/$part" "$out/"; done
+    tail -n "+$(( parts_per_command + 1 ))" "$stage/unsent" > "$stage/unsent.next" && mv "$stage/unsent.next" "$stage/unsent"
     if [[ -s "$stage/unsent" ]]; then
         echo "== $(wc -l < "$stage/unsent") more part(s) of the archive wait here: run \`bash benchmarks/gpu_run.sh --rest\`" \
             "next, before the machine goes back"
