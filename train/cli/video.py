@@ -27,8 +27,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=None,
                         help="output MP4 (default: RUN_DIR/video.mp4 for a run, else TASK-trained.mp4 or "
                              "TASK-random.mp4)")
-    parser.add_argument("--episodes", type=positive, default=3,
-                        help="whole episodes to film, each at most the test horizon (default: 3)")
+    parser.add_argument("--episodes", type=positive, default=None,
+                        help="whole episodes to film, each at most the test horizon (default: three, fewer where "
+                             "the first already fills the film, as a 1 000-decision food-collector episode does)")
     parser.add_argument("--steps", type=positive, default=None,
                         help="film exactly this many steps instead (new episodes after each end)")
     parser.add_argument("--seed", type=nonnegative, default=0, help="first layout and exploration seed (default: 0)")
@@ -60,13 +61,14 @@ def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Render the video and print its path."""
-    from train.experiments.video import record_video
+    from train.experiments.video import VIDEO_EPISODES, VIDEO_MAX_FRAMES, record_video
 
     with user_errors(ValueError, OSError, RunDirError):
         policy, default_out = _video_source(args)
         video = record_video(args.task, args.out or default_out, policy_path=policy, steps=args.steps,
                              seed=args.seed, seed_index=args.agent, train_env=args.train_env, epsilon=args.epsilon,
-                             episodes=args.episodes)
+                             episodes=args.episodes or VIDEO_EPISODES,
+                             max_frames=None if args.episodes else VIDEO_MAX_FRAMES)
     print(video.summary(), file=sys.stderr)
     print(video.path)
     return 0

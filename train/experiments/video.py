@@ -84,6 +84,11 @@ VIDEO_EPSILON = 0.05
 VIDEO_EPISODES = 3
 """Episodes filmed by default: one episode shows a single layout, a few show what the policy usually does."""
 
+VIDEO_MAX_FRAMES = 1_000
+"""No further episode starts once a film of whole episodes holds this many frames: a food-collector episode is
+1 000 decisions (a 512 x 512 frame each, 1.8 MB of H.264), so it is filmed once; a grid episode (at most 200
+steps, 500 in the walled salad) leaves room for the next."""
+
 
 def env_kwargs_for(task: str, policy: Policy | None, train_env: bool) -> dict[str, Any]:
     """Keyword arguments of the filmed environment: the test MDP, or the training env with ``train_env``."""
@@ -113,9 +118,10 @@ class Film:
 
 
 def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | None = None,
-                 episodes: int = 1) -> Film:
+                 episodes: int = 1, max_frames: int | None = None) -> Film:
     """Film ``act`` in ``env`` from a reset with ``seed``: exactly ``steps`` steps (a new episode after each
-    end) or, without ``steps``, ``episodes`` whole episodes. The first frame is included.
+    end) or, without ``steps``, ``episodes`` whole episodes, fewer where the film already holds ``max_frames``
+    frames when one ends (the first episode is always whole). The first frame is included.
     """
     obs, _ = env.reset(seed=seed)
     frames, started, solved, solved_now, taken, total = [env.render()], 1, 0, False, 0, 0.0
@@ -129,7 +135,8 @@ def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | 
         if terminated or truncated:
             first_episode = first_episode or len(frames)
             solved, solved_now = solved + solved_now, False
-            if (steps is None and started == episodes) or taken == steps:
+            enough = started == episodes or (max_frames is not None and len(frames) >= max_frames)
+            if (steps is None and enough) or taken == steps:
                 break
             obs, _ = env.reset()
             frames.append(env.render())
@@ -163,14 +170,16 @@ class Video:
 
 def record_video(task: str | None, out: str | Path, policy_path: str | Path | None = None, steps: int | None = None,
                  seed: int = 0, seed_index: int = 0, train_env: bool = False, epsilon: float = VIDEO_EPSILON,
-                 episodes: int = VIDEO_EPISODES, strip: str | Path | None = None) -> Video:
+                 episodes: int = VIDEO_EPISODES, strip: str | Path | None = None,
+                 max_frames: int | None = VIDEO_MAX_FRAMES) -> Video:
     """Write an H.264 MP4 of one rollout; return its path and how many episodes it shows solved.
 
     ``policy_path`` (a run directory, checkpoint or policy file) selects the trained policy (of seed number
     ``seed_index`` of a run); without it a uniform random policy acts. The film is ``steps`` steps long, or
-    without ``steps`` ``episodes`` whole episodes (each at most the horizon; a reset-free env has one
-    episode, so its film is one horizon long). ``seed`` seeds the first layout and the exploration draws.
-    ``strip``: also write the first episode as a filmstrip PNG there (`write_filmstrip`).
+    without ``steps`` ``episodes`` whole episodes (each at most the horizon; fewer where the film holds
+    ``max_frames`` frames when one ends; a reset-free env has one episode, so its film is one horizon long).
+    ``seed`` seeds the first layout and the exploration draws. ``strip``: also write the first episode as a
+    filmstrip PNG there (`write_filmstrip`).
     """
     import gymnasium as gym
 
@@ -196,7 +205,7 @@ def record_video(task: str | None, out: str | Path, policy_path: str | Path | No
     if steps is None and kwargs.get("reset_free"):
         steps = int(kwargs.get("horizon", 200))
     try:
-        film = film_rollout(env, act, seed, steps, episodes)
+        film = film_rollout(env, act, seed, steps, episodes, max_frames)
         fps = env.metadata.get("render_fps", 8)
     finally:
         env.close()

@@ -144,6 +144,34 @@ def test_film_counts_whole_episodes_and_solved_ones():
     assert film_rollout(_CountingEnv(9), lambda obs: 1, seed=0, steps=5).first_episode == 6  # cut short
 
 
+@pytest.mark.parametrize(("max_frames", "episodes", "frames"), [(1, 1, 4), (4, 1, 4), (5, 2, 8), (9, 3, 12)])
+def test_a_film_starts_no_episode_past_its_frame_budget(max_frames, episodes, frames):
+    from train.experiments.video import film_rollout
+
+    film = film_rollout(_CountingEnv(3), lambda obs: 0, seed=0, episodes=3, max_frames=max_frames)
+    assert (film.episodes, len(film.frames)) == (episodes, frames)  # the first episode whole, however long
+
+
+def test_a_default_film_keeps_to_the_frame_budget_and_asked_episodes_do_not(monkeypatch, tmp_path, capsys):
+    from pathlib import Path
+
+    from foodcollector.params import UNITY_EPISODE_DECISIONS
+    from train.experiments import video
+
+    assert UNITY_EPISODE_DECISIONS + 1 >= video.VIDEO_MAX_FRAMES  # a food-collector film is one episode
+    assert video.VIDEO_MAX_FRAMES > 2 * (200 + 1)  # three episodes of a grid task with horizon 200
+    asked = []
+
+    def fake_record(task, out, **kwargs):
+        asked.append((kwargs["episodes"], kwargs["max_frames"]))
+        return video.Video(Path(out), 1, 0, 0.0, "return")
+
+    monkeypatch.setattr(video, "record_video", fake_record)
+    for extra in ([], ["--episodes", "5"]):
+        assert cli.main(["video", "foodcollector", "--random", "--out", str(tmp_path / "fc.mp4"), *extra]) == 0
+    assert asked == [(video.VIDEO_EPISODES, video.VIDEO_MAX_FRAMES), (5, None)]
+
+
 def test_a_filmstrip_shows_an_episode_frame_by_frame(tmp_path):
     import cv2
 
