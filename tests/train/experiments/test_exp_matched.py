@@ -1,0 +1,42 @@
+"""``python -m train.experiments.report.matched``: runs of different lengths compared where their evaluations meet."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from train.experiments.report.matched import main, matched_table
+
+
+def _run(path, task, returns_by_step):
+    """A run directory: config.json naming the task, metrics.csv with one row per (step, seed)."""
+    path.mkdir(parents=True)
+    (path / "config.json").write_text(json.dumps({"env": {"task": task}}))
+    lines = ["step,seed,epsilon,loss,max_q,success,return,train_reward,steps_per_s"]
+    for step, values in returns_by_step.items():
+        lines += [f"{step},{k},0.1,0.0,1.0,{v if task != 'foodcollector' else 'nan'},{v},0.0,1.0"
+                  for k, v in enumerate(values)]
+    (path / "metrics.csv").write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_short_and_a_long_run_meet_at_their_common_steps(tmp_path):
+    long = _run(tmp_path / "long", "foodcollector", {100: [1.0, 3.0], 200: [5.0, 5.0], 300: [9.0, 9.0]})
+    short = _run(tmp_path / "short", "foodcollector", {100: [0.0, 0.0], 200: [2.0, 4.0]})
+    lines = matched_table([long, short], at=[200, 300], average_to=[200]).splitlines()
+    assert lines[0] == "| run | at 200 | at 300 | average to 200 |"
+    assert lines[2] == f"| {long.as_posix()} | 5.0 [5.0, 5.0] | 9.0 [9.0, 9.0] | 3.5 [3.0, 4.0] |"
+    assert lines[3].startswith(f"| {short.as_posix()} | 3.0 [2.0, 4.0] | — | 1.5 [1.0, 2.0] |")
+
+
+def test_a_grid_run_reads_in_success_percent(tmp_path):
+    run = _run(tmp_path / "grid", "salad", {100: [0.5, 0.5]})
+    assert "| 50.0% [50.0, 50.0] |" in matched_table([run], at=[100])
+
+
+def test_the_command_names_a_bad_directory_and_wants_steps(tmp_path, capsys):
+    assert main([str(tmp_path), "--at", "5"]) == 1
+    assert "is not a run directory" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main([str(tmp_path)])
