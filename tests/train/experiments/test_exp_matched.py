@@ -1,9 +1,12 @@
-"""``python -m train.experiments.report.matched``: runs of different lengths compared where their evaluations meet."""
+"""``python -m train.experiments.report.matched`` (runs of different lengths compared where their evaluations meet)
+and ``...report.corners`` (time spent in the grid's corners).
+"""
 
 from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from train.experiments.report.matched import main, matched_table
@@ -40,3 +43,18 @@ def test_the_command_names_a_bad_directory_and_wants_steps(tmp_path, capsys):
     assert "is not a run directory" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main([str(tmp_path)])
+
+
+def test_corner_shares_count_the_four_cells_inside_the_outer_wall(tmp_path):
+    from train.experiments.report.corners import corner_shares, corner_table, main
+
+    visits = np.zeros((2, 5, 6), np.int64)
+    visits[0, 1, 1], visits[0, 3, 4], visits[0, 2, 2] = 3, 1, 4  # two corners (4 visits) and the middle (4)
+    visits[1, 2, 3] = 5  # no corner at all
+    assert corner_shares(visits).tolist() == [0.5, 0.0]
+    (tmp_path / "run" / "visits").mkdir(parents=True)
+    np.save(tmp_path / "run" / "visits" / "000000100.npy", visits)
+    lines = corner_table([tmp_path / "run"]).splitlines()
+    # four cells reached in all, two of them corners: spread evenly, half the visits would be in corners
+    assert lines[2] == f"| {(tmp_path / 'run').as_posix()} | 100 | 25.0 % [0.0, 50.0] | 50.0 % |"
+    assert main([str(tmp_path)]) == 1  # no visits/ there

@@ -185,10 +185,10 @@ def heatmap_snapshot_files(run_dir: Path, points: int = HEATMAP_POINTS) -> list[
 
 def visit_snapshots(run_dir: Path, points: int = HEATMAP_POINTS) -> list[tuple[int, np.ndarray]]:
     """Up to ``points`` evenly spaced (step, counts summed over seeds) snapshots of a run's visitation."""
-    return [(int(f.stem), _read_visits(f).sum(0)) for f in heatmap_snapshot_files(run_dir, points)]
+    return [(int(f.stem), read_visits(f).sum(0)) for f in heatmap_snapshot_files(run_dir, points)]
 
 
-def _read_visits(path: Path) -> np.ndarray:
+def read_visits(path: Path) -> np.ndarray:
     """One visitation snapshot: a regular file, its header and size checked before its data is read."""
     with open_regular(path) as f:
         return read_npy(f, MAX_TEXT_BYTES, str(path))

@@ -1,0 +1,73 @@
+"""How much of a run's time its agents spent in the corners of the grid (the paper's Fig. 9 reading of its heat-maps).
+
+For each of the snapshots the heat-maps draw, each seed's share of all its visits so far that fell on the four
+corner cells inside the grid's outer wall, as mean [95 % CI] over seeds, beside the share a visitor spread evenly
+over the cells the run ever reached would leave there::
+
+    python -m train.experiments.report.corners RUN_DIR [RUN_DIR ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from train.experiments.report.figures import heatmap_snapshot_files, read_visits
+from train.experiments.report.stats import bootstrap_ci
+
+
+def corner_cells(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of the four corner cells inside a grid's one-cell outer wall."""
+    return np.array([1, 1, height - 2, height - 2]), np.array([1, width - 2, 1, width - 2])
+
+
+def corner_shares(visits: np.ndarray) -> np.ndarray:
+    """(S,) each seed's share of its visits on the four inner corner cells; ``visits`` is (S, H, W) counts."""
+    rows, cols = corner_cells(*visits.shape[1:])
+    totals = visits.sum((1, 2)).astype(np.float64)
+    return visits[:, rows, cols].sum(1) / np.maximum(totals, 1.0)
+
+
+def corner_rows(run_dir: Path) -> list[str]:
+    """Markdown rows of one run: step, corner share mean [95 % CI], and the even-spread share."""
+    snapshots = [(int(f.stem), read_visits(f)) for f in heatmap_snapshot_files(run_dir)]
+    if not snapshots:
+        raise ValueError(f"{run_dir} has no visitation snapshots in {run_dir / 'visits'}")
+    reached = snapshots[-1][1].sum(0) > 0
+    even = 100.0 * reached[corner_cells(*reached.shape)].sum() / max(int(reached.sum()), 1)
+    rows = []
+    for step, visits in snapshots:
+        mean, low, high = bootstrap_ci(corner_shares(visits) * 100.0)
+        rows.append(f"| {run_dir.as_posix()} | {step} | {float(mean):.1f} % [{float(low):.1f}, {float(high):.1f}] "
+                    f"| {even:.1f} % |")
+    return rows
+
+
+def corner_table(run_dirs: Sequence[Path]) -> str:
+    """The markdown table of `corner_rows` for each run directory."""
+    lines = ["| run | step | visits in the 4 corners | if spread evenly |", "|---|---|---|---|"]
+    for run_dir in run_dirs:
+        lines += corner_rows(run_dir)
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Print the table for the run directories on the command line."""
+    parser = argparse.ArgumentParser(prog="python -m train.experiments.report.corners",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=Path, metavar="RUN_DIR", help="grid-task run directories")
+    args = parser.parse_args(argv)
+    try:
+        print(corner_table(args.runs))
+    except (OSError, ValueError) as err:
+        print(f"corners: {err}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
