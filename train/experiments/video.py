@@ -86,8 +86,8 @@ VIDEO_EPISODES = 3
 
 VIDEO_MAX_FRAMES = 1_000
 """No further episode starts once a film of whole episodes holds this many frames: a food-collector episode is
-1 000 decisions (a 512 x 512 frame each, 1.8 MB of H.264), so it is filmed once; a grid episode (at most 200
-steps, 500 in the walled salad) leaves room for the next."""
+1 000 decisions (a 512 x 512 frame each, 1.8 MB of H.264), so it is filmed once; three grid episodes of at most
+200 steps always fit, and two unsolved walled-salad ones (500 steps) end the film."""
 
 
 def env_kwargs_for(task: str, policy: Policy | None, train_env: bool) -> dict[str, Any]:
