@@ -56,5 +56,5 @@ def test_corner_shares_count_the_four_cells_inside_the_outer_wall(tmp_path):
     np.save(tmp_path / "run" / "visits" / "000000100.npy", visits)
     lines = corner_table([tmp_path / "run"]).splitlines()
     # four cells reached in all, two of them corners: spread evenly, half the visits would be in corners
-    assert lines[2] == f"| {(tmp_path / 'run').as_posix()} | 100 | 25.0 % [0.0, 50.0] | 50.0 % |"
+    assert lines[2] == f"| {(tmp_path / 'run').as_posix()} | 100 | 25.0% [0.0, 50.0] | 50.0% |"
     assert main([str(tmp_path)]) == 1  # no visits/ there

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from train.experiments.report.figures import heatmap_snapshot_files, read_visits
-from train.experiments.report.stats import bootstrap_ci
+from train.experiments.report.stats import summarize
 
 
 def corner_cells(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
@@ -41,9 +41,8 @@ def corner_rows(run_dir: Path) -> list[str]:
     even = 100.0 * reached[corner_cells(*reached.shape)].sum() / max(int(reached.sum()), 1)
     rows = []
     for step, visits in snapshots:
-        mean, low, high = bootstrap_ci(corner_shares(visits) * 100.0)
-        rows.append(f"| {run_dir.as_posix()} | {step} | {float(mean):.1f} % [{float(low):.1f}, {float(high):.1f}] "
-                    f"| {even:.1f} % |")
+        share = summarize(corner_shares(visits), "success")[0]  # a fraction, shown like success: 17.3% [14.8, 20.0]
+        rows.append(f"| {run_dir.as_posix()} | {step} | {share} | {even:.1f}% |")
     return rows
 
 
