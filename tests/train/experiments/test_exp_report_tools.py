@@ -1,5 +1,5 @@
 """``python -m train.experiments.report.matched`` (runs of different lengths compared where their evaluations meet)
-and ``...report.corners`` (time spent in the grid's corners).
+and ``...report.corners`` (time spent in the grid's corners, and how evenly the visits spread).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def test_the_command_names_a_bad_directory_and_wants_steps(tmp_path, capsys):
 
 
 def test_corner_shares_count_the_four_cells_inside_the_outer_wall(tmp_path):
-    from train.experiments.report.corners import corner_shares, corner_table, main
+    from train.experiments.report.corners import corner_shares, corner_table, evenness, main
 
     visits = np.zeros((2, 5, 6), np.int64)
     visits[0, 1, 1], visits[0, 3, 4], visits[0, 2, 2] = 3, 1, 4  # two corners (4 visits) and the middle (4)
@@ -56,5 +56,10 @@ def test_corner_shares_count_the_four_cells_inside_the_outer_wall(tmp_path):
     np.save(tmp_path / "run" / "visits" / "000000100.npy", visits)
     lines = corner_table([tmp_path / "run"]).splitlines()
     # four cells reached in all, two of them corners: spread evenly, half the visits would be in corners
-    assert lines[2] == f"| {(tmp_path / 'run').as_posix()} | 100 | 25.0% [0.0, 50.0] | 50.0% |"
+    # seed 0 spreads 3:1:4 over three of the four cells reached, seed 1 stays on one: evenness, the entropy over
+    # the four cells as a share of log 4, is 70.3 % and 0 %
+    h = -sum(q * np.log(q) for q in (3 / 8, 1 / 8, 4 / 8)) / np.log(4)
+    assert evenness(visits, visits.sum(0) > 0) == pytest.approx([h, 0.0])
+    assert evenness(np.full((1, 3, 3), 7), np.ones((3, 3), bool)) == pytest.approx([1.0])  # all cells alike
+    assert lines[2] == f"| {(tmp_path / 'run').as_posix()} | 100 | 25.0% [0.0, 50.0] | 50.0% | 35.1% [0.0, 70.3] |"
     assert main([str(tmp_path)]) == 1  # no visits/ there

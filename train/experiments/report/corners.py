@@ -1,8 +1,10 @@
-"""How much of a run's time its agents spent in the corners of the grid (the paper's Fig. 9 reading of its heat-maps).
+"""How much of a run's time its agents spent in the corners of the grid, and how evenly they spread over it (the
+paper's Fig. 9 reading of its heat-maps).
 
 For each of the snapshots the heat-maps draw, each seed's share of all its visits so far that fell on the four
 corner cells inside the grid's outer wall, as mean [95 % CI] over seeds, beside the share a visitor spread evenly
-over the cells the run ever reached would leave there::
+over the cells the run ever reached would leave there; and each seed's evenness, the entropy of its visits over
+those cells as a share of its largest possible value (100 %: every cell visited equally often; 0: one cell only)::
 
     python -m train.experiments.report.corners RUN_DIR [RUN_DIR ...]
 """
@@ -32,8 +34,17 @@ def corner_shares(visits: np.ndarray) -> np.ndarray:
     return visits[:, rows, cols].sum(1) / np.maximum(totals, 1.0)
 
 
+def evenness(visits: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(S,) each seed's entropy of its visits over the (H, W) boolean ``cells``, divided by log(their count)."""
+    counts = visits[:, cells].astype(np.float64)
+    p = counts / np.maximum(counts.sum(1, keepdims=True), 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        entropy = -np.where(p > 0, p * np.log(p), 0.0).sum(1)
+    return entropy / np.log(cells.sum()) if cells.sum() > 1 else np.zeros(len(visits))
+
+
 def corner_rows(run_dir: Path) -> list[str]:
-    """Markdown rows of one run: step, corner share mean [95 % CI], and the even-spread share."""
+    """Markdown rows of one run: step, corner share mean [95 % CI], the even-spread share, evenness [95 % CI]."""
     snapshots = [(int(f.stem), read_visits(f)) for f in heatmap_snapshot_files(run_dir)]
     if not snapshots:
         raise ValueError(f"{run_dir} has no visitation snapshots in {run_dir / 'visits'}")
@@ -42,13 +53,14 @@ def corner_rows(run_dir: Path) -> list[str]:
     rows = []
     for step, visits in snapshots:
         share = summarize(corner_shares(visits), "success")[0]  # a fraction, shown like success: 17.3% [14.8, 20.0]
-        rows.append(f"| {run_dir.as_posix()} | {step} | {share} | {even:.1f}% |")
+        spread = summarize(evenness(visits, reached), "success")[0]  # a fraction of its largest value, in %
+        rows.append(f"| {run_dir.as_posix()} | {step} | {share} | {even:.1f}% | {spread} |")
     return rows
 
 
 def corner_table(run_dirs: Sequence[Path]) -> str:
     """The markdown table of `corner_rows` for each run directory."""
-    lines = ["| run | step | visits in the 4 corners | if spread evenly |", "|---|---|---|---|"]
+    lines = ["| run | step | visits in the 4 corners | if spread evenly | evenness |", "|---|---|---|---|---|"]
     for run_dir in run_dirs:
         lines += corner_rows(run_dir)
     return "\n".join(lines)
