@@ -20,7 +20,7 @@ from ecology.knobs import (
     schedule_value,
     validation_seeds,
 )
-from ecology.measure import hitting_time, marginal_entropy, visitation_counts
+from ecology.measure import count_entropy, hitting_time, marginal_entropy, visitation_counts
 from ecology.video import write_video
 
 __all__ = [
@@ -36,6 +36,7 @@ __all__ = [
     "VisitGrid",
     "check_action",
     "check_render_mode",
+    "count_entropy",
     "hitting_time",
     "marginal_entropy",
     "parse_schedule",

@@ -27,9 +27,17 @@ def marginal_entropy(observations: Iterable[np.ndarray] | np.ndarray) -> float:
     counts = Counter(np.ascontiguousarray(o).tobytes() for o in observations)
     if not counts:
         raise ValueError("marginal_entropy needs at least one observation")
-    p = np.fromiter(counts.values(), dtype=np.float64)
-    p /= p.sum()
-    return float(-(p * np.log(p)).sum())
+    return float(count_entropy(np.fromiter(counts.values(), dtype=np.int64)))
+
+
+def count_entropy(counts: np.ndarray) -> np.ndarray:
+    """Entropy (nats) of the distribution that non-negative ``counts`` give along their last axis, H = -sum p log p
+    (zero counts add nothing; all-zero counts give 0).
+    """
+    counts = np.asarray(counts, dtype=np.float64)
+    p = counts / np.maximum(counts.sum(-1, keepdims=True), 1e-300)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return -np.where(p > 0, p * np.log(p), 0.0).sum(-1)
 
 
 def visitation_counts(positions: Iterable[Sequence[int]] | np.ndarray, shape: tuple[int, int]) -> np.ndarray:

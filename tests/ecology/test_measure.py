@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ecology import hitting_time, marginal_entropy, visitation_counts, write_video
+from ecology import count_entropy, hitting_time, marginal_entropy, visitation_counts, write_video
 
 
 def test_hitting_time_counts_steps_to_first_reward():
@@ -25,6 +25,11 @@ def test_marginal_entropy_of_known_distributions():
     assert marginal_entropy(views) == pytest.approx(math.log(8))
     with pytest.raises(ValueError, match="at least one"):
         marginal_entropy([])
+
+
+def test_count_entropy_ignores_zero_counts_and_works_along_the_last_axis():
+    h = count_entropy(np.array([[2, 2, 0, 0], [1, 1, 1, 1], [5, 0, 0, 0], [0, 0, 0, 0]]))
+    assert h == pytest.approx([math.log(2), math.log(4), 0.0, 0.0])
 
 
 def test_visitation_counts_are_indexed_row_then_column():

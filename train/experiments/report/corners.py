@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ecology import count_entropy
 from train.experiments.report.figures import heatmap_snapshot_files, read_visits
 from train.experiments.report.stats import summarize
 
@@ -36,11 +37,8 @@ def corner_shares(visits: np.ndarray) -> np.ndarray:
 
 def evenness(visits: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """(S,) each seed's entropy of its visits over the (H, W) boolean ``cells``, divided by log(their count)."""
-    counts = visits[:, cells].astype(np.float64)
-    p = counts / np.maximum(counts.sum(1, keepdims=True), 1.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        entropy = -np.where(p > 0, p * np.log(p), 0.0).sum(1)
-    return entropy / np.log(cells.sum()) if cells.sum() > 1 else np.zeros(len(visits))
+    n = int(cells.sum())
+    return count_entropy(visits[:, cells]) / np.log(n) if n > 1 else np.zeros(len(visits))
 
 
 def corner_rows(run_dir: Path) -> list[str]:
