@@ -356,7 +356,8 @@ def _task_experiments() -> list[Experiment]:
             "with visitation heat-maps.",
             {"walled-salad": _shaping_conditions("walled-salad", True, "-reset-free")
              + _shaping_conditions("walled-salad", False, "-episodic")},
-            {"walled-salad": 1_000_000}, 3, {"smoke": SMOKE, "quick": _quick(3, 100_000)}, heatmaps=True),
+            {"walled-salad": 1_000_000}, 3, {"smoke": SMOKE, "quick": _quick(3, 100_000)}, heatmaps=True,
+            panel_per_setting=True),
         Experiment(
             "measure", "Table 1", "What a random policy experiences",
             "Uniform random policy in the non-episodic training envs: first-reward hitting time (static, "

@@ -71,6 +71,9 @@ class Experiment:
     """The report renders a rollout video of each condition's final policy."""
     milestones: tuple[int, ...] = ()
     """Steps at which the report tabulates every condition (mean, CI, seeds learned) besides the last one."""
+    panel_per_setting: bool = False
+    """The report's curves give each task's non-episodic and episodic conditions a panel each (the paper's
+    Fig. 8 has one per setting), instead of one panel per task."""
 
     @property
     def tasks(self) -> tuple[str, ...]:
@@ -116,7 +119,7 @@ class Experiment:
         return {
             "name": self.name, "paper": self.paper, "title": self.title, "description": self.description,
             "heatmaps": self.heatmaps, "videos": self.videos, "measurement": self.is_measurement,
-            "milestones": list(self.milestones),
+            "milestones": list(self.milestones), "panel_per_setting": self.panel_per_setting,
             "tasks": {task: [{"name": c.name, "label": c.label, "overrides": dict(c.overrides),
                               "measure": c.measure} for c in conds]
                       for task, conds in self.conditions.items()},

@@ -11,9 +11,9 @@ import pytest
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import DONE_FILE
 from train.experiments.report import make_report
-from train.experiments.report.figures import HEATMAP_POINTS, heatmap_snapshot_files, visit_snapshots
+from train.experiments.report.figures import HEATMAP_POINTS, curve_panels, heatmap_snapshot_files, visit_snapshots
 from train.experiments.report.paper import format_paper, load_paper, paper_value
-from train.experiments.report.runs import read_metrics
+from train.experiments.report.runs import load_experiment, read_metrics
 from train.experiments.report.stats import bootstrap_ci
 from train.rundir import EXPERIMENT_FILE, METRIC_COLUMNS
 
@@ -86,6 +86,24 @@ def test_report_on_synthetic_runs(tmp_path):
     steps_read, values = read_metrics(root / exp.name / "salad" / "static-episodic" / "metrics.csv", "success")
     assert steps_read.tolist() == steps and values.shape == (10, 3)
     assert "<video" not in (root / "index.html").read_text()
+
+
+def test_walls_curves_get_a_panel_per_setting_and_other_experiments_one_per_task(tmp_path):
+    steps = [5_000, 10_000]
+    for name, task, conditions in (("walls", "walled-salad", ["one-time-reward-episodic", "no-shaping-reset-free",
+                                                               "env-shaping-sparse-reset-free"]),
+                                   ("dynamism", "salad", ["static-episodic", "dynamic-reset-free"])):
+        root = tmp_path / name
+        root.mkdir()
+        (root / EXPERIMENT_FILE).write_text(json.dumps({**get_experiment(name).describe(), "budget": "quick"}))
+        for condition in conditions:
+            _fake_run(root / task / condition, 2, steps, lambda i, k: 0.0)
+    panels = curve_panels(load_experiment(tmp_path / "walls"))
+    walls = [(title, [r.condition for r in runs]) for _, title, runs in panels]
+    assert walls == [("walled-salad, non-episodic", ["env-shaping-sparse-reset-free", "no-shaping-reset-free"]),
+                     ("walled-salad, episodic", ["one-time-reward-episodic"])]
+    dynamism = [(title, len(runs)) for _, title, runs in curve_panels(load_experiment(tmp_path / "dynamism"))]
+    assert dynamism == [("salad", 2)]
 
 
 def test_loose_videos_in_the_results_directory_are_shown(tmp_path):

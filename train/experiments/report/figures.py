@@ -79,16 +79,16 @@ def reference_label(reference: ExperimentResults) -> str:
 
 def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
                 reference: ExperimentResults | None = None) -> Path | None:
-    """One panel per task: mean and 95% CI over seeds of every condition, each seed as a thin line; the
-    paper's values dotted; the same conditions of a ``reference`` experiment (shipped paper-budget runs)
-    dashed, so a short run shows where its curves are heading.
+    """One panel per task (or per task and setting, `curve_panels`): mean and 95% CI over seeds of every
+    condition, each seed as a thin line; the paper's values dotted; the same conditions of a ``reference``
+    experiment (shipped paper-budget runs) dashed, so a short run shows where its curves are heading.
     """
-    tasks = [t for t in exp.tasks if any(r.task == t for r in exp.runs)]
-    if not tasks:
+    panels = curve_panels(exp)
+    if not panels:
         return None
     plt = _pyplot()
-    ncols = min(len(tasks), 5)
-    nrows = math.ceil(len(tasks) / ncols)
+    ncols = min(len(panels), 5)
+    nrows = math.ceil(len(panels) / ncols)
     width = max(4.2 * ncols, 7.5)
     fig, axes = plt.subplots(nrows, ncols, figsize=(width, 3.4 * nrows + 1.2), squeeze=False,
                              layout="constrained")
@@ -96,19 +96,20 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     labels = {r.condition: set() for r in exp.runs}
     for r in exp.runs:
         labels[r.condition].add(r.label)
-    shared_legend = all(len(v) == 1 for v in labels.values())  # else each panel gets its own legend
+    # one legend below the panels where every condition has one label and the panels split no task's
+    # conditions; else each panel gets its own
+    shared_legend = all(len(v) == 1 for v in labels.values()) and len(panels) == len({t for t, _, _ in panels})
     handles: dict[str, Any] = {}
     has_paper = False
-    for ax, task in zip(axes.flat, tasks):
-        runs = [r for r in exp.runs if r.task == task]
+    for ax, (_, title, runs) in zip(axes.flat, panels):
         for run in runs:
             line, quoted = _draw_run(ax, run, color_of[run.condition], paper, reference)
             handles.setdefault(run.label, line)
             has_paper = has_paper or quoted
-        _style_panel(ax, task, runs[0].metric, own_legend=not shared_legend)
+        _style_panel(ax, title, runs[0].metric, own_legend=not shared_legend)
         if reference is not None:  # the live steps fill the panel; the shipped runs are drawn in full elsewhere
             ax.set_xlim(0, max(int(r.steps[-1]) for r in runs) * 1.03)
-    for ax in list(axes.flat)[len(tasks):]:
+    for ax in list(axes.flat)[len(panels):]:
         ax.set_visible(False)
     if not shared_legend:
         handles = {}
@@ -133,6 +134,27 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     return out
 
 
+def curve_panels(exp: ExperimentResults) -> list[tuple[str, str, list[Run]]]:
+    """(task, title, runs) of each panel of the curves, in panel order: one per task with results, or where
+    the experiment asks for it (``panel_per_setting``), one per task and setting, non-episodic first.
+    """
+    panels = []
+    for task in exp.tasks:
+        runs = [r for r in exp.runs if r.task == task]
+        if not runs:
+            continue
+        if not exp.info.get("panel_per_setting"):
+            panels.append((task, task, runs))
+            continue
+        resets = {c["name"]: bool(c["overrides"].get("reset_free", False))  # the config's default: episodic
+                  for c in exp.info.get("tasks", {}).get(task, [])}
+        for reset_free, setting in ((True, "non-episodic"), (False, "episodic")):
+            chosen = [r for r in runs if resets.get(r.condition, False) == reset_free]
+            if chosen:
+                panels.append((task, f"{task}, {setting}", chosen))
+    return panels
+
+
 def _draw_run(ax, run: Run, color: str, paper: dict, reference: ExperimentResults | None) -> tuple[Any, bool]:
     """One condition in a panel: each seed thin, the mean and its CI, the reference's mean dashed, the paper's
     value dotted; returns the mean's line and whether the paper's value was drawn.
@@ -150,9 +172,9 @@ def _draw_run(ax, run: Run, color: str, paper: dict, reference: ExperimentResult
     return line, ref is not None
 
 
-def _style_panel(ax, task: str, metric: str, own_legend: bool) -> None:
-    """Title, axis labels and limits, grid and (when conditions are labelled per task) a legend of one panel."""
-    ax.set_title(task)
+def _style_panel(ax, title: str, metric: str, own_legend: bool) -> None:
+    """Title, axis labels and limits, grid and (when conditions are labelled per panel) a legend of one panel."""
+    ax.set_title(title)
     ax.set_xlabel("environment steps")
     ax.set_ylabel("fraction of validation tasks solved" if metric == "success" else "mean validation return")
     if metric == "success":

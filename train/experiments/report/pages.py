@@ -3,8 +3,8 @@
 ``make_report(DIR)`` reads every experiment directory under DIR (or DIR itself) written by `train.experiments.sweep`
 and writes into DIR:
 
-* ``figures/<experiment>_curves.png``: learning curves, one panel per task, mean and 95% bootstrap CI
-  over seeds against environment steps, the paper's reported values as dotted lines;
+* ``figures/<experiment>_curves.png``: learning curves, one panel per task (Fig. 8: per setting), mean and 95%
+  bootstrap CI over seeds against environment steps, the paper's reported values as dotted lines;
 * ``figures/<experiment>_<task>_heatmaps.png``: cumulative visitation counts (summed over seeds) at four
   points of training, for experiments that ask for them (Fig. 2, 9, 10); a second directory of the same
   experiment in one report names its figures after itself (`figure_stems`);
