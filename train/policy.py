@@ -146,7 +146,7 @@ def validation_success(run_dir: Path, step: int | None = None, column: str = "su
                          f"rebuild it from the checkpoint with 'ecorl train TASK --resume'") from None
 
 
-def _load_run(path: str | Path) -> tuple[Path, dict[str, Any]]:
+def load_run(path: str | Path) -> tuple[Path, dict[str, Any]]:
     """The run directory of ``path`` and its verified checkpoint (configuration, step and online networks)."""
     run_dir = resolve_run_dir(path)
     state = RunDir(run_dir).read_checkpoint(keys=["agent/online"])
@@ -189,7 +189,7 @@ def _policy_of(run_dir: Path, state: dict[str, Any], seed_index: int) -> Policy:
 
 def policy_from_run(path: str | Path, seed_index: int = 0) -> Policy:
     """The online network of seed number ``seed_index`` in the run at ``path`` (run dir or checkpoint)."""
-    return _policy_of(*_load_run(path), seed_index)
+    return _policy_of(*load_run(path), seed_index)
 
 
 def save_policy(policy: Policy, out: str | Path) -> Path:
@@ -291,7 +291,7 @@ def export_policy(run_dir: str | Path, out: str | Path, seed_index: int | None =
     """Write seed ``seed_index`` of a run as a policy file; by default the seed with the best validation
     success at the checkpoint's step.
     """
-    run_dir, state = _load_run(run_dir)
+    run_dir, state = load_run(run_dir)
     if seed_index is None:
         success = validation_success(run_dir, int(state["step"]))
         seed_index = max(success, key=lambda k: (success[k], -k)) if success else 0
@@ -307,7 +307,7 @@ def export_run_policies(run_dir: str | Path, state: dict[str, Any] | None = None
     no success), as ``RUN_DIR/policies/best.npz`` and ``median.npz`` (the upper median of an even count);
     ``state`` is the run's checkpoint state if already in memory. Empty if the run has no evaluation yet.
     """
-    run_dir, state = (Path(run_dir), state) if state is not None else _load_run(run_dir)
+    run_dir, state = (Path(run_dir), state) if state is not None else load_run(run_dir)
     step = int(state["step"])
     scores = validation_success(run_dir, step)
     if scores and all(np.isnan(v) for v in scores.values()):

@@ -14,11 +14,11 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from train.cli import demo, evaluate, export, measure, report, run, video
+from train.cli import demo, evaluate, export, measure, merge, report, run, video
 from train.cli import train as train_command
 from train.cli.common import OneLineParser, UserError
 
-COMMANDS = (train_command, run, report, measure, video, export, evaluate, demo)
+COMMANDS = (train_command, run, report, measure, video, export, evaluate, merge, demo)
 """The subcommand modules, in the order ``ecorl --help`` lists them."""
 
 

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from train.cli.common import DEFAULT_OUT, UserError, minutes, positive, relative, user_errors
+from train.cli.common import DEFAULT_OUT, UserError, minutes, nonnegative, positive, relative, user_errors
 from train.experiments.catalog import BUDGETS, EXPERIMENTS, get_experiment
 
 
@@ -44,6 +44,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--device", default=None, metavar="D",
                         help="where the networks and updates run: cpu (default) or cuda[:N]")
     parser.add_argument("--seeds", type=positive, default=None, help="override the budget's seeds per condition")
+    parser.add_argument("--first-seed", type=nonnegative, default=0, metavar="N",
+                        help="train seeds N, N+1, ... (with --seeds: a part of each condition's seeds, on another "
+                             "core or machine; join the finished parts with 'ecorl merge-seeds')")
     parser.add_argument("--steps", type=positive, default=None, help="override the budget's steps per seed")
     parser.add_argument("--minutes", type=minutes, default=None,
                         help="time budget: measure this machine's speed first, then size the steps per seed so that "
@@ -84,7 +87,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     try:
         exp = get_experiment(args.experiment)
         jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition, args.restart,
-                    args.device)
+                    args.device, args.first_seed)
     except ValueError as err:
         parser.error(str(err))
     if args.out.exists() and not args.out.is_dir():

@@ -43,10 +43,11 @@ EXPERIMENT_LOCK = ".experiment.lock"
 
 def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Sequence[str] | None = None,
          seeds: int | None = None, steps: int | None = None, conditions: Sequence[str] | None = None,
-         restart: Sequence[str] = (), device: str | None = None) -> list[Job]:
-    """The jobs of ``experiment`` at a budget (optionally a task or condition subset, other seeds/steps, or
-    another device: a runtime setting, so runs move between devices freely); conditions named in ``restart``
-    are cleared and trained from scratch.
+         restart: Sequence[str] = (), device: str | None = None, first_seed: int = 0) -> list[Job]:
+    """The jobs of ``experiment`` at a budget (optionally a task or condition subset, other seeds/steps, seeds
+    from ``first_seed`` on (a part of each condition's seeds, `train.merge`), or another device: a runtime
+    setting, so runs move between devices freely); conditions named in ``restart`` are cleared and trained
+    from scratch.
     """
     budget = experiment.budget(budget_name)
     if seeds is not None or steps is not None:
@@ -63,6 +64,7 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
             else:
                 cfg = job_config(experiment, task, cond, budget)
                 cfg = cfg.replace(device=device) if device else cfg
+                cfg = cfg.replace(first_seed=first_seed) if first_seed else cfg
                 cfg.check_trains()
                 jobs.append(Job(experiment.name, task, cond.name, run_dir, cfg.to_dict(),
                                 cfg.run.seeds * cfg.total_steps * (10 if task == "foodcollector" else 1)))

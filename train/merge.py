@@ -1,0 +1,185 @@
+r"""Join runs that each trained a part of one condition's seeds into the run directory of all of them.
+
+So a condition's seeds can train on several cores or machines, e.g. ten seeds as two runs of five::
+
+    ecorl run shaping --budget paper --task foodcollector --condition no-shaping --seeds 5 --out part-a
+    ecorl run shaping --budget paper --task foodcollector --condition no-shaping --seeds 5 --first-seed 5 \
+        --out part-b
+    ecorl merge-seeds part-a/shaping/foodcollector/no-shaping part-b/shaping/foodcollector/no-shaping \
+        --out results/shaping/foodcollector/no-shaping
+
+The seeds of a run learn independently (each its own worlds, network, replay buffer and random streams), so
+the merged metrics are those of one process training all the seeds, up to floating-point rounding in the
+batched network passes (``tests/train/test_merge.py`` trains both ways and compares). The merged directory
+has no checkpoint: it holds the finished results (config.json, metrics.csv, the visitation counts, policies/
+and, where every part has one, done.json), which the report reads and whose policies ``ecorl video`` and
+``ecorl evaluate`` play; it cannot be trained further.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from train.config import TrainConfig
+from train.experiments.jobs import DONE_FILE
+from train.fileio import atomic_text, atomic_write
+from train.policy import export_run_policies, load_run
+from train.rundir import EXPERIMENT_FILE, RunDir, RunDirError
+from train.safeio import open_regular, read_npy, read_text
+
+SPLIT_SETTINGS = ("seeds", "first_seed")
+"""The settings in which the parts of one run differ."""
+MAX_VISITS_BYTES = 1 << 30
+"""Largest visitation array read from a part (a 10-seed grid run's are a few kilobytes)."""
+
+
+@dataclass
+class _Part:
+    """One finished part run: its directory, configuration, metrics rows and online networks."""
+
+    path: Path
+    cfg: TrainConfig
+    step: int
+    rows: list[dict[str, str]]
+    online: torch.Tensor
+
+    @property
+    def seed_range(self) -> str:
+        """Its seeds as 'first-last'."""
+        return f"{self.cfg.run.first_seed}-{self.cfg.run.first_seed + self.cfg.run.seeds - 1}"
+
+
+def merge_seed_runs(parts: Sequence[str | Path], out: str | Path) -> Path:
+    """Write into ``out`` (a new or empty directory) the run of all the seeds of ``parts``: finished runs
+    (checkpoint at the last step) of one configuration but their seeds, which must follow one another without
+    a gap. Returns ``out``; `ValueError` or `RunDirError` (naming the part and the fix) when they do not fit.
+    """
+    if len(parts) < 2:
+        raise ValueError("name at least two run directories to merge (each trained some of the seeds)")
+    loaded = sorted((_read_part(Path(p)) for p in parts), key=lambda part: part.cfg.run.first_seed)
+    _check_parts(loaded)
+    cfg = loaded[0].cfg.replace(seeds=sum(part.cfg.run.seeds for part in loaded))
+    run = RunDir(out)
+    run.prepare(cfg, resume=False)  # refuses a directory that holds anything; writes config.json
+    try:
+        run.write_metrics(sorted((row for part in loaded for row in part.rows),
+                                 key=lambda row: (int(row["step"]), int(row["seed"]))))
+        _write_visits(run.path, loaded)
+        state = {"config": cfg.to_dict(), "step": loaded[0].step,
+                 "agent": {"online": torch.cat([part.online for part in loaded])}}
+        export_run_policies(run.path, state)
+        _write_done(run.path, cfg, loaded)
+        _write_experiment_file(run.path, loaded[0].path)
+    finally:
+        run.unlock()
+    return run.path
+
+
+def _read_part(path: Path) -> _Part:
+    """A part run, refused unless it finished (its checkpoint at its last step) and has metrics."""
+    run_dir, state = load_run(path)
+    cfg = TrainConfig.from_dict(state["config"])
+    step = int(state["step"])
+    if step < cfg.total_steps:
+        raise RunDirError(f"{run_dir} stands at step {step:,} of {cfg.total_steps:,}: finish it first (resume it "
+                          f"with the command that started it), then merge")
+    with io.StringIO(read_text(run_dir / "metrics.csv"), newline="") as f:
+        rows = list(csv.DictReader(f))
+    try:
+        seeds = {int(row["seed"]) for row in rows}
+    except (KeyError, TypeError, ValueError) as err:
+        raise RunDirError(f"{run_dir / 'metrics.csv'} is not an ecorl metrics file ({err})") from None
+    if not rows or not seeds <= set(cfg.run.seed_list):
+        raise RunDirError(f"{run_dir / 'metrics.csv'} holds no evaluation of this run's seeds "
+                          f"{cfg.run.seed_list}; restore it, or delete it and rebuild it with "
+                          f"'ecorl train TASK --resume --out {run_dir}'")
+    return _Part(run_dir, cfg, step, rows, state["agent"]["online"])
+
+
+def _check_parts(parts: list[_Part]) -> None:
+    """Refuse parts that are not one run's seeds: other settings, overlapping or missing seeds, other
+    evaluations or visitation snapshots.
+    """
+    first = parts[0]
+    same = {k: v for k, v in first.cfg.identity().items() if k not in SPLIT_SETTINGS}
+    for part in parts[1:]:
+        other = {k: v for k, v in part.cfg.identity().items() if k not in SPLIT_SETTINGS}
+        diffs = [f"{k}: {same[k]!r} vs {other.get(k)!r}" for k in same if same[k] != other.get(k)]
+        if diffs:
+            raise ValueError(f"{part.path} was trained with other settings than {first.path} "
+                             f"({'; '.join(diffs)}); merge only parts of one condition")
+    for before, after in zip(parts, parts[1:]):
+        follows = before.cfg.run.first_seed + before.cfg.run.seeds
+        if after.cfg.run.first_seed != follows:
+            gap = "overlap" if after.cfg.run.first_seed < follows else "leave a gap"
+            raise ValueError(f"the seeds of {before.path} ({before.seed_range}) and {after.path} "
+                             f"({after.seed_range}) {gap}; train parts with --first-seed set so that each begins "
+                             f"where the one before ends")
+    for part in parts[1:]:
+        for what, ours, theirs in (("evaluations", _eval_steps(part), _eval_steps(first)),
+                                   ("visitation snapshots", _snapshots(part.path), _snapshots(first.path))):
+            if ours != theirs:
+                raise ValueError(f"{part.path} and {first.path} hold different {what}; merge only finished "
+                                 f"parts of one condition")
+
+
+def _eval_steps(part: _Part) -> set[int]:
+    """The steps at which the part evaluated its seeds."""
+    return {int(row["step"]) for row in part.rows}
+
+
+def _snapshots(run_dir: Path) -> list[str]:
+    """The names of a run's visitation snapshots (``visits/STEP.npy``)."""
+    return sorted(p.name for p in (run_dir / "visits").glob("*.npy"))
+
+
+def _read_visits(path: Path) -> np.ndarray:
+    """One (seeds, rows, cols) visitation array of a part, its header checked before its data is read."""
+    with open_regular(path) as f:
+        return read_npy(f, MAX_VISITS_BYTES, str(path))
+
+
+def _write_visits(out: Path, parts: list[_Part]) -> None:
+    """The parts' visitation counts, latest and every snapshot, joined along the seed axis."""
+    names = [f"visits/{name}" for name in _snapshots(parts[0].path)]
+    names += ["visits.npy"] if (parts[0].path / "visits.npy").exists() else []
+    (out / "visits").mkdir(exist_ok=True)
+    for name in names:
+        buf = io.BytesIO()
+        np.save(buf, np.concatenate([_read_visits(part.path / name) for part in parts]))
+        atomic_write(out / name, buf.getvalue())
+
+
+def _write_experiment_file(out: Path, part: Path) -> None:
+    """Where the parts are conditions of an ``ecorl run`` experiment and ``out`` is the same condition's
+    directory in an experiment directory that has no experiment file yet, copy the parts' (so the report finds
+    the merged run).
+    """
+    source, target = part.parent.parent / EXPERIMENT_FILE, out.parent.parent / EXPERIMENT_FILE
+    same_place = (out.name, out.parent.name) == (part.name, part.parent.name)
+    if same_place and source.is_file() and not target.exists():
+        atomic_text(target, read_text(source))
+
+
+def _write_done(out: Path, cfg: TrainConfig, parts: list[_Part]) -> None:
+    """A done marker for the merged run where every part has one (parts of an ``ecorl run`` condition)."""
+    markers = []
+    for part in parts:
+        path = part.path / DONE_FILE
+        if not path.is_file():
+            return
+        marker = json.loads(read_text(path))
+        markers.append({"seeds": part.seed_range, **{k: marker[k] for k in ("seconds", "finished") if k in marker}})
+    done: dict[str, Any] = {"total_steps": cfg.total_steps, "seeds": cfg.run.seeds,
+                            "finished": time.strftime("%Y-%m-%dT%H:%M:%S"), "merged_from": markers}
+    atomic_text(out / DONE_FILE, json.dumps(done, indent=2) + "\n")
