@@ -8,12 +8,14 @@ import numpy as np
 import pytest
 
 from train.cli import main
+from train.config import TrainConfig
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import job_is_done, read_done
 from train.experiments.sweep import plan, write_experiment_file
 from train.merge import merge_seed_runs
 from train.policy import load_policy_file
 from train.rundir import RunDirError
+from train.trainer import Trainer
 
 RUN = ["run", "episodic-vs-reset-free", "--budget", "smoke", "--task", "salad", "--condition", "static-episodic",
        "--jobs", "1", "--no-progress"]
@@ -69,6 +71,13 @@ def test_parts_that_are_not_one_runs_seeds_are_refused(trained, tmp_path):
         merge_seed_runs([a, trained / "whole" / CONDITION], tmp_path / "x")
     with pytest.raises(ValueError, match="leave a gap"):
         merge_seed_runs([a, trained / "part-c" / CONDITION], tmp_path / "x")
+    unfinished = Trainer(TrainConfig().replace(task="salad", seeds=2, first_seed=1, steps=2_000, warmup_steps=100,
+                                               epoch_steps=100, progress=False), tmp_path / "unfinished")
+    unfinished.train_epoch()
+    unfinished.save()
+    unfinished.close()
+    with pytest.raises(RunDirError, match="stands at step [0-9,]+ of 2,000: finish it first"):
+        merge_seed_runs([a, tmp_path / "unfinished"], tmp_path / "x")
     merge_seed_runs([a, b], tmp_path / "merged")
     with pytest.raises(RunDirError, match="not empty"):
         merge_seed_runs([a, b], tmp_path / "merged")
