@@ -11,7 +11,13 @@ import pytest
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import DONE_FILE
 from train.experiments.report import make_report
-from train.experiments.report.figures import HEATMAP_POINTS, curve_panels, heatmap_snapshot_files, visit_snapshots
+from train.experiments.report.figures import (
+    HEATMAP_POINTS,
+    curve_panels,
+    heatmap_snapshot_files,
+    report_colors,
+    visit_snapshots,
+)
 from train.experiments.report.paper import format_paper, load_paper, paper_value
 from train.experiments.report.runs import load_experiment, read_metrics
 from train.experiments.report.stats import bootstrap_ci
@@ -91,7 +97,8 @@ def test_report_on_synthetic_runs(tmp_path):
 def test_walls_curves_get_a_panel_per_setting_and_other_experiments_one_per_task(tmp_path):
     steps = [5_000, 10_000]
     for name, task, conditions in (("walls", "walled-salad", ["one-time-reward-episodic", "no-shaping-reset-free",
-                                                               "env-shaping-sparse-reset-free"]),
+                                                               "env-shaping-sparse-reset-free",
+                                                               "one-time-reward-reset-free"]),
                                    ("dynamism", "salad", ["static-episodic", "dynamic-reset-free"])):
         root = tmp_path / name
         root.mkdir()
@@ -100,10 +107,15 @@ def test_walls_curves_get_a_panel_per_setting_and_other_experiments_one_per_task
             _fake_run(root / task / condition, 2, steps, lambda i, k: 0.0)
     panels = curve_panels(load_experiment(tmp_path / "walls"))
     walls = [(title, [r.condition for r in runs]) for _, title, runs in panels]
-    assert walls == [("walled-salad, non-episodic", ["env-shaping-sparse-reset-free", "no-shaping-reset-free"]),
+    assert walls == [("walled-salad, non-episodic", ["env-shaping-sparse-reset-free", "one-time-reward-reset-free",
+                                                     "no-shaping-reset-free"]),
                      ("walled-salad, episodic", ["one-time-reward-episodic"])]
     dynamism = [(title, len(runs)) for _, title, runs in curve_panels(load_experiment(tmp_path / "dynamism"))]
     assert dynamism == [("salad", 2)]
+    colors = report_colors(load_experiment(tmp_path / "walls"))  # one arm, one colour in both panels
+    assert colors["one-time-reward-episodic"] == colors["one-time-reward-reset-free"]
+    assert len({colors[c] for c in ("no-shaping-reset-free", "env-shaping-sparse-reset-free",
+                                    "one-time-reward-episodic")}) == 3
 
 
 def test_loose_videos_in_the_results_directory_are_shown(tmp_path):

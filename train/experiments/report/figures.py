@@ -1,8 +1,8 @@
 """The report's figures: learning curves per task and visitation heat-maps, written as PNG atomically.
 
-Every figure of a report gives a condition the same colour (`condition_colors`, keyed by the condition's name
-and distinct within the report), and a figure's bytes depend only on what it shows (no date or software
-version in the file).
+Every figure of a report gives a condition the same colour (`report_colors`: keyed by the condition's name
+and distinct within the report; one per arm where the curves have a panel per setting), and a figure's bytes
+depend only on what it shows (no date or software version in the file).
 """
 
 from __future__ import annotations
@@ -56,6 +56,30 @@ def condition_colors(names: Iterable[str]) -> dict[str, str]:
     return colors
 
 
+SETTING_SUFFIXES = ("-reset-free", "-episodic")
+"""The endings of the names of one arm's conditions in an experiment with a panel per setting (``walls``)."""
+ARM_COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f")
+"""The arms' colours in an experiment with a panel per setting, in the order of its conditions."""
+
+
+def report_colors(exp: ExperimentResults) -> dict[str, str]:
+    """The colour of each condition of an experiment's figures (`condition_colors`); where its curves have a
+    panel per setting, each arm's (conditions named alike but for `SETTING_SUFFIXES`) from `ARM_COLORS` in the
+    experiment's order, so the two panels read alike.
+    """
+    if not exp.info.get("panel_per_setting"):
+        return condition_colors(r.condition for r in exp.runs)
+    listed = [c["name"] for conds in exp.info.get("tasks", {}).values() for c in conds]
+    arms: dict[str, str] = {}
+    for name in listed + sorted({r.condition for r in exp.runs} - set(listed)):
+        arm = name
+        for suffix in SETTING_SUFFIXES:
+            arm = arm.removesuffix(suffix)
+        arms[name] = arm
+    order = list(dict.fromkeys(arms.values()))
+    return {name: ARM_COLORS[order.index(arm) % len(ARM_COLORS)] for name, arm in arms.items()}
+
+
 def condition_color(name: str) -> str:
     """The colour of condition ``name`` shown alone (`condition_colors` of it alone)."""
     return condition_colors([name])[name]
@@ -92,7 +116,7 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     width = max(4.2 * ncols, 7.5)
     fig, axes = plt.subplots(nrows, ncols, figsize=(width, 3.4 * nrows + 1.2), squeeze=False,
                              layout="constrained")
-    color_of = condition_colors(r.condition for r in exp.runs)
+    color_of = report_colors(exp)
     labels = {r.condition: set() for r in exp.runs}
     for r in exp.runs:
         labels[r.condition].add(r.label)
@@ -224,7 +248,7 @@ def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
     rows = [(r, snaps) for r, snaps in rows if snaps]
     if not rows:
         return None
-    color_of = condition_colors(r.condition for r in exp.runs)  # as in the report's curves
+    color_of = report_colors(exp)  # as in the report's curves
     plt = _pyplot()
     ncols = max(len(s) for _, s in rows)
     width = 2.3 * ncols + 3.2
