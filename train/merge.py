@@ -77,9 +77,9 @@ def merge_seed_runs(parts: Sequence[str | Path], out: str | Path) -> Path:
         _write_visits(run.path, loaded)
         state = {"config": cfg.to_dict(), "step": loaded[0].step,
                  "agent": {"online": torch.cat([part.online for part in loaded])}}
+        _write_experiment_file(run.path, loaded[0].path)  # first: the policies name their run after it
         export_run_policies(run.path, state)
         _write_done(run.path, cfg, loaded)
-        _write_experiment_file(run.path, loaded[0].path)
     finally:
         run.unlock()
     return run.path

@@ -78,6 +78,8 @@ def test_parts_that_are_not_one_runs_seeds_are_refused(trained, tmp_path):
     unfinished.close()
     with pytest.raises(RunDirError, match="stands at step [0-9,]+ of 2,000: finish it first"):
         merge_seed_runs([a, tmp_path / "unfinished"], tmp_path / "x")
+    with pytest.raises(ValueError, match="drop --first-seed"):  # a measurement has no training seeds to split
+        plan(get_experiment("measure"), "smoke", tmp_path, first_seed=1)
     merge_seed_runs([a, b], tmp_path / "merged")
     with pytest.raises(RunDirError, match="not empty"):
         merge_seed_runs([a, b], tmp_path / "merged")
@@ -92,6 +94,7 @@ def test_the_command_merges_and_names_a_part_trained_otherwise(trained, tmp_path
     assert main(["merge-seeds", str(part_a), str(part_b), "--out", str(merged)]) == 0
     assert "seeds 0-2 of 2 runs" in capsys.readouterr().out
     assert (tmp_path / "results/episodic-vs-reset-free/experiment.json").is_file()  # the report finds the run
+    assert load_policy_file(merged / "policies" / "best.npz").meta["source"] == CONDITION
     assert main(["report", str(tmp_path / "results"), "--out", str(tmp_path / "report")]) == 0
     assert "| salad | static, episodic | 0.0% [0.0, 0.0] | 0 / 3 |" in (tmp_path / "report/report.md").read_text()
     assert main(["merge-seeds", str(part_a), str(other / "episodic-vs-reset-free/salad/static-reset-free"),

@@ -50,6 +50,9 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
     from scratch.
     """
     budget = experiment.budget(budget_name)
+    if first_seed and experiment.is_measurement:
+        raise ValueError(f"--first-seed picks the seeds of training runs; {experiment.name!r} measures a random "
+                         f"policy over its own seeds (drop --first-seed)")
     if seeds is not None or steps is not None:
         budget = replace(budget, seeds=seeds or budget.seeds, steps=steps or budget.steps)
     root = Path(out).resolve() / experiment.name
