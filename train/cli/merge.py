@@ -27,7 +27,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Merge the parts and say what was written."""
-    from train.merge import merge_seed_runs
+    from train.experiments.merge import merge_seed_runs
     from train.policy import run_config
 
     with user_errors(ValueError, OSError, RunDirError):

@@ -45,7 +45,7 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
          seeds: int | None = None, steps: int | None = None, conditions: Sequence[str] | None = None,
          restart: Sequence[str] = (), device: str | None = None, first_seed: int = 0) -> list[Job]:
     """The jobs of ``experiment`` at a budget (optionally a task or condition subset, other seeds/steps, seeds
-    from ``first_seed`` on (a part of each condition's seeds, `train.merge`), or another device: a runtime
+    from ``first_seed`` on (a part of each condition's seeds, `train.experiments.merge`), or another device: a runtime
     setting, so runs move between devices freely); conditions named in ``restart`` are cleared and trained
     from scratch.
     """

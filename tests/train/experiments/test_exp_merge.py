@@ -11,8 +11,8 @@ from train.cli import main
 from train.config import TrainConfig
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import job_is_done, read_done
+from train.experiments.merge import merge_seed_runs
 from train.experiments.sweep import plan, write_experiment_file
-from train.merge import merge_seed_runs
 from train.policy import load_policy_file
 from train.rundir import RunDirError
 from train.trainer import Trainer
