@@ -10,10 +10,10 @@ So a condition's seeds can train on several cores or machines, e.g. ten seeds as
 
 The seeds of a run learn independently (each its own worlds, network, replay buffer and random streams), so
 the merged metrics are those of one process training all the seeds, up to floating-point rounding in the
-batched network passes (``tests/train/experiments/test_exp_merge.py`` trains both ways and compares). The merged directory
-has no checkpoint: it holds the finished results (config.json, metrics.csv, the visitation counts, policies/
-and, where every part has one, done.json), which the report reads and whose policies ``ecorl video`` and
-``ecorl evaluate`` play; it cannot be trained further.
+batched network passes (``tests/train/experiments/test_exp_merge.py`` trains both ways and compares). The
+merged directory has no checkpoint: it holds the finished results (config.json, metrics.csv, the visitation
+counts, policies/ and, where every part has one, done.json), which the report reads and whose policies
+``ecorl video`` and ``ecorl evaluate`` play; it cannot be trained further.
 """
 
 from __future__ import annotations
