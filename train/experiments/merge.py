@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from train.config import TrainConfig
-from train.experiments.jobs import DONE_FILE
+from train.experiments.jobs import DONE_FILE, read_done
 from train.fileio import atomic_text, atomic_write
 from train.policy import export_run_policies, load_run
 from train.rundir import EXPERIMENT_FILE, RunDir, RunDirError
@@ -175,10 +175,9 @@ def _write_done(out: Path, cfg: TrainConfig, parts: list[_Part]) -> None:
     """A done marker for the merged run where every part has one (parts of an ``ecorl run`` condition)."""
     markers = []
     for part in parts:
-        path = part.path / DONE_FILE
-        if not path.is_file():
+        marker = read_done(part.path)
+        if marker is None:
             return
-        marker = json.loads(read_text(path))
         markers.append({"seeds": part.seed_range, **{k: marker[k] for k in ("seconds", "finished") if k in marker}})
     done: dict[str, Any] = {"total_steps": cfg.total_steps, "seeds": cfg.run.seeds,
                             "finished": time.strftime("%Y-%m-%dT%H:%M:%S"), "merged_from": markers}
