@@ -28,7 +28,7 @@ from train.checkpoint import write_checkpoint as _write_checkpoint
 from train.config import TrainConfig
 from train.fileio import FileLock, LockedError, atomic_file, atomic_write, is_temporary
 from train.memory import checkpoint_limit
-from train.safeio import UnsafeFileError, real_dir
+from train.safeio import UnsafeFileError, open_regular, read_npy, real_dir
 from train.statecheck import check_counter
 
 __all__ = ["METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write", "check_same_run"]
@@ -50,6 +50,9 @@ LOCK_NAME = ".lock"
 
 SUBDIRS = ("visits", "tensorboard")
 """Directories inside a run directory that ecorl writes into (never through a link)."""
+
+MAX_VISITS_BYTES = 256 << 20
+"""Largest visitation array read back (a 10-seed run's are a few kilobytes; the limit stops a planted file)."""
 
 
 class RunDirError(RuntimeError):
@@ -198,9 +201,20 @@ class RunDir:
     def save_visits(self, visits: np.ndarray, step: int) -> None:
         """Save the lifetime visitation counts (seeds, rows, cols) as the latest and as a snapshot."""
         for path in (self.visits_path, self.path / "visits" / f"{step:09d}.npy"):
-            buf = io.BytesIO()
-            np.save(buf, visits)
-            atomic_write(path, buf.getvalue())
+            write_visits(path, visits)
+
+
+def write_visits(path: Path, visits: np.ndarray) -> None:
+    """Write one visitation array (``visits.npy`` or a snapshot ``visits/STEP.npy``) atomically."""
+    buf = io.BytesIO()
+    np.save(buf, visits)
+    atomic_write(path, buf.getbuffer())
+
+
+def read_visits(path: Path) -> np.ndarray:
+    """Read one visitation array: a regular file, its header and size checked before its data is read."""
+    with open_regular(path) as f:
+        return read_npy(f, MAX_VISITS_BYTES, str(path))
 
 
 def check_same_run(saved: TrainConfig, requested: TrainConfig, where: Path) -> None:

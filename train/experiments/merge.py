@@ -32,15 +32,13 @@ import torch
 
 from train.config import TrainConfig
 from train.experiments.jobs import DONE_FILE, read_done
-from train.fileio import atomic_text, atomic_write
+from train.fileio import atomic_text
 from train.policy import export_run_policies, load_run
-from train.rundir import EXPERIMENT_FILE, RunDir, RunDirError
-from train.safeio import open_regular, read_npy, read_text
+from train.rundir import EXPERIMENT_FILE, RunDir, RunDirError, read_visits, write_visits
+from train.safeio import read_text
 
 SPLIT_SETTINGS = ("seeds", "first_seed")
 """The settings in which the parts of one run differ."""
-MAX_VISITS_BYTES = 1 << 30
-"""Largest visitation array read from a part (a 10-seed grid run's are a few kilobytes)."""
 
 
 @dataclass
@@ -143,21 +141,13 @@ def _snapshots(run_dir: Path) -> list[str]:
     return sorted(p.name for p in (run_dir / "visits").glob("*.npy"))
 
 
-def _read_visits(path: Path) -> np.ndarray:
-    """One (seeds, rows, cols) visitation array of a part, its header checked before its data is read."""
-    with open_regular(path) as f:
-        return read_npy(f, MAX_VISITS_BYTES, str(path))
-
-
 def _write_visits(out: Path, parts: list[_Part]) -> None:
     """The parts' visitation counts, latest and every snapshot, joined along the seed axis."""
     names = [f"visits/{name}" for name in _snapshots(parts[0].path)]
     names += ["visits.npy"] if (parts[0].path / "visits.npy").exists() else []
     (out / "visits").mkdir(exist_ok=True)
     for name in names:
-        buf = io.BytesIO()
-        np.save(buf, np.concatenate([_read_visits(part.path / name) for part in parts]))
-        atomic_write(out / name, buf.getvalue())
+        write_visits(out / name, np.concatenate([read_visits(part.path / name) for part in parts]))
 
 
 def _write_experiment_file(out: Path, part: Path) -> None:

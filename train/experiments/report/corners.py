@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from ecology import count_entropy
-from train.experiments.report.figures import heatmap_snapshot_files, read_visits
+from train.experiments.report.figures import heatmap_snapshot_files
 from train.experiments.report.stats import summarize
+from train.rundir import read_visits
 
 
 def corner_cells(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:

@@ -20,7 +20,7 @@ from train.experiments.report.paper import paper_value
 from train.experiments.report.runs import ExperimentResults, Run
 from train.experiments.report.stats import CI_LEVEL, bootstrap_ci
 from train.fileio import atomic_file
-from train.safeio import MAX_TEXT_BYTES, open_regular, read_npy
+from train.rundir import read_visits
 
 HEATMAP_POINTS = 4
 """Points of training shown in each heat-map row (the paper's Fig. 9-10 show four)."""
@@ -232,12 +232,6 @@ def heatmap_snapshot_files(run_dir: Path, points: int = HEATMAP_POINTS) -> list[
 def visit_snapshots(run_dir: Path, points: int = HEATMAP_POINTS) -> list[tuple[int, np.ndarray]]:
     """Up to ``points`` evenly spaced (step, counts summed over seeds) snapshots of a run's visitation."""
     return [(int(f.stem), read_visits(f).sum(0)) for f in heatmap_snapshot_files(run_dir, points)]
-
-
-def read_visits(path: Path) -> np.ndarray:
-    """One visitation snapshot: a regular file, its header and size checked before its data is read."""
-    with open_regular(path) as f:
-        return read_npy(f, MAX_TEXT_BYTES, str(path))
 
 
 def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
