@@ -52,6 +52,8 @@ class FlatAdam:
         # PyTorch's fused kernel (what torch.optim.Adam(fused=True) calls) does the whole update in one
         # pass, ~3x faster here than the six elementwise operations below, which remain the fallback.
         self.fused = fused and hasattr(torch, "_fused_adam_")
+        self._rows_key: tuple | None = None
+        self._rows: list[list[Tensor]] = []
 
     @property
     def steps(self) -> int:
@@ -63,9 +65,8 @@ class FlatAdam:
         beta1, beta2 = self.betas
         self._step_tensor += 1
         if self.fused:
-            torch._fused_adam_([params], [grad], [self.exp_avg], [self.exp_avg_sq], [], [self._step_tensor],
-                               lr=self.lr, beta1=beta1, beta2=beta2, weight_decay=0.0, eps=self.eps,
-                               amsgrad=False, maximize=False)
+            torch._fused_adam_(*self._agent_rows(params, grad), lr=self.lr, beta1=beta1, beta2=beta2,
+                               weight_decay=0.0, eps=self.eps, amsgrad=False, maximize=False)
             return
         self.exp_avg.lerp_(grad, 1.0 - beta1)
         self.exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1.0 - beta2)
@@ -74,6 +75,20 @@ class FlatAdam:
         bias2_sqrt = (1.0 - beta2 ** steps) ** 0.5
         denom = self.exp_avg_sq.sqrt().div_(bias2_sqrt).add_(self.eps)
         params.addcdiv_(self.exp_avg, denom, value=-self.lr / bias1)
+
+    def _agent_rows(self, params: Tensor, grad: Tensor) -> list[list[Tensor]]:
+        """The fused kernel's tensor lists (parameters, gradients, moments, none, step counts), one tensor per
+        agent row, made once per pair of buffers (views cost more than the kernel saves).
+
+        Per row because the kernel ends each tensor with a scalar loop that rounds differently from its
+        vector body: on one (K, P) tensor the last agent's last entries would take it, so a seed's training
+        would depend on how many seeds share its process (`ecorl run --first-seed` parts).
+        """
+        key = (params.data_ptr(), params.shape, params.stride(), grad.data_ptr(), grad.stride())
+        if self._rows_key != key:
+            rows = [list(t.unbind(0)) for t in (params, grad, self.exp_avg, self.exp_avg_sq)]
+            self._rows_key, self._rows = key, [*rows, [], [self._step_tensor] * params.shape[0]]
+        return self._rows
 
     def state_dict(self) -> dict[str, Any]:
         """The optimiser state (moments and step count)."""

@@ -47,10 +47,8 @@ def test_merged_parts_are_the_run_of_all_their_seeds(trained, tmp_path):
     assert job_is_done(job)  # the merged config is the one 'ecorl run --seeds 3' asks for, and it is finished
     got, want = _rows(merged), _rows(whole)
     assert [(r["step"], r["seed"]) for r in got] == [(r["step"], r["seed"]) for r in want]
-    for column in ("epsilon", "success", "return", "train_reward"):  # the seeds learn independently
-        assert [r[column] for r in got] == [r[column] for r in want]
-    for column in ("loss", "max_q"):  # up to rounding in the batched network passes
-        np.testing.assert_allclose([float(r[column]) for r in got], [float(r[column]) for r in want], rtol=1e-3)
+    for column in ("epsilon", "loss", "max_q", "success", "return", "train_reward"):  # the seeds learn
+        assert [r[column] for r in got] == [r[column] for r in want]  # independently, bit for bit
     for name in ["visits.npy"] + [f"visits/{p.name}" for p in (whole / "visits").glob("*.npy")]:
         assert np.array_equal(np.load(merged / name), np.load(whole / name)), name
     for pick in ("best", "median"):
