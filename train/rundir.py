@@ -31,7 +31,8 @@ from train.memory import checkpoint_limit
 from train.safeio import UnsafeFileError, open_regular, read_npy, real_dir
 from train.statecheck import check_counter
 
-__all__ = ["METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write", "check_same_run"]
+__all__ = ["METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write", "check_same_run",
+           "read_visits", "write_visits"]
 
 METRIC_COLUMNS = ("step", "seed", "epsilon", "loss", "max_q", "success", "return", "train_reward",
                   "steps_per_s")

@@ -78,7 +78,7 @@ class FlatAdam:
 
     def _agent_rows(self, params: Tensor, grad: Tensor) -> list[list[Tensor]]:
         """The fused kernel's tensor lists (parameters, gradients, moments, none, step counts), one tensor per
-        agent row, made once per pair of buffers (views cost more than the kernel saves).
+        agent row, made once per pair of buffers (making the K views at each step costs about what the kernel does).
 
         Per row because the kernel ends each tensor with a scalar loop that rounds differently from its
         vector body: on one (K, P) tensor the last agent's last entries would take it, so a seed's training
