@@ -8,9 +8,11 @@ So a condition's seeds can train on several cores or machines, e.g. ten seeds as
     ecorl merge-seeds part-a/shaping/foodcollector/no-shaping part-b/shaping/foodcollector/no-shaping \
         --out results/shaping/foodcollector/no-shaping
 
-The seeds of a run learn independently (each its own worlds, network, replay buffer and random streams), so
-the merged metrics are those of one process training all the seeds, up to floating-point rounding in the
-batched network passes (``tests/train/experiments/test_exp_merge.py`` trains both ways and compares). The
+The seeds of a run learn independently (each its own worlds, network, replay buffer and random streams), and on
+the CPU their gradient steps do not depend on the seeds beside them, so the merged metrics are those of one
+process training all the seeds (``tests/train/experiments/test_exp_merge.py`` trains both ways and compares
+exactly), but for rare greedy near ties that the batched one-observation forward pass can break differently and,
+on grid tasks, a process of 16 or more seeds, whose sparse first layer rounds otherwise (docs/cli.md). The
 merged directory has no checkpoint: it holds the finished results (config.json, metrics.csv, the visitation
 counts, policies/ and, where every part has one, done.json), which the report reads and whose policies
 ``ecorl video`` and ``ecorl evaluate`` play; it cannot be trained further.
