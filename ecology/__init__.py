@@ -20,7 +20,14 @@ from ecology.knobs import (
     schedule_value,
     validation_seeds,
 )
-from ecology.measure import count_entropy, hitting_time, marginal_entropy, visitation_counts
+from ecology.measure import (
+    corner_cells,
+    corner_share,
+    count_entropy,
+    hitting_time,
+    marginal_entropy,
+    visitation_counts,
+)
 from ecology.video import write_video
 
 __all__ = [
@@ -36,6 +43,8 @@ __all__ = [
     "VisitGrid",
     "check_action",
     "check_render_mode",
+    "corner_cells",
+    "corner_share",
     "count_entropy",
     "hitting_time",
     "marginal_entropy",

@@ -16,6 +16,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from ecology.knobs import TEST_MDP, Ecology
+from ecology.measure import corner_cells
 
 
 class InvalidAction(ValueError, TypeError):
@@ -36,6 +37,12 @@ class VisitGrid:
     """The (x, y) position of the corner of cell [0, 0]."""
     cells_per_unit: float = 1.0
     """Cells per unit of distance (1 for grid cells)."""
+    wall: int = 0
+    """Cells of wall along every edge of the map (the grid tasks' wall ring: 1); its corners lie inside it."""
+
+    def corners(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rows, cols) of the map's four corner cells inside its wall: where a stuck agent sits (`corner_share`)."""
+        return corner_cells(self.shape, self.wall)
 
     def cells(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Row and column of each (x, y) position in ``positions`` (shape (N, 2)), clipped to the map."""

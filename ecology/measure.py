@@ -1,4 +1,4 @@
-"""Env-agnostic measurements over rollouts: first-reward hitting time, marginal entropy, visitation."""
+"""Env-agnostic measurements over rollouts: first-reward hitting time, marginal entropy, visitation, corners."""
 
 from __future__ import annotations
 
@@ -50,3 +50,22 @@ def visitation_counts(positions: Iterable[Sequence[int]] | np.ndarray, shape: tu
             raise ValueError(f"positions fall outside a grid of shape {shape} (rows, cols)")
         np.add.at(counts, (pos[:, 1], pos[:, 0]), 1)
     return counts
+
+
+def corner_cells(shape: tuple[int, int], wall: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of the four corner cells of an (H, W) map just inside ``wall`` cells of border wall."""
+    height, width = shape
+    if min(height, width) - 2 * wall < 2:
+        raise ValueError(f"a {height}x{width} map with a wall {wall} cells thick has no four inner corners")
+    near, far_row, far_col = wall, height - 1 - wall, width - 1 - wall
+    return np.array([near, near, far_row, far_row]), np.array([near, far_col, near, far_col])
+
+
+def corner_share(visits: np.ndarray, wall: int = 1) -> np.ndarray:
+    """Share of the visits in ``visits`` (..., H, W counts) that fell on the four corner cells inside the wall
+    (0 where there are no visits): the corner-sitting of a collapsed policy, 4 / cells for an even spread.
+    """
+    visits = np.asarray(visits)
+    rows, cols = corner_cells(visits.shape[-2:], wall)
+    totals = visits.sum((-2, -1)).astype(np.float64)
+    return visits[..., rows, cols].sum(-1) / np.maximum(totals, 1.0)

@@ -214,18 +214,20 @@ def step_world(w, r, action: int, obs):
     creatures_first = r.creatures_before_hands and action >= PICK_UP
     if creatures_first:
         move_creatures(w, r, s)
-    picked, made, dropped, delivered = act(w, r, action)
-    solved = delivered or (picked != 0 and picked == r.goal_pickup)
+    picked, made, placed_on, dropped, delivered = act(w, r, action)
+    solved = delivered or (picked != 0 and picked == r.goal_pickup) or (made != 0 and made == r.goal_made)
     if solved:
         w.completions += 1
-        if r.reset_free and not delivered:
+        if r.reset_free and made != 0:
+            w.grid[w.agent[1], w.agent[0]], w.age[w.agent[1], w.agent[0]] = 0, 0  # the product made is used up
+        elif r.reset_free and not delivered:
             w.inventory = 0  # the world goes on: the completed task's object is consumed (and regrows)
     if not creatures_first:
         move_creatures(w, r, s)
     caught = move_predators(w, r, start_x, start_y) if r.num_predators > 0 else False
     grow_resources(w, r, s)
     wither(w, r)
-    reward = task_reward(w, r, picked, made, dropped, solved)
+    reward = task_reward(w, r, picked, made, placed_on, dropped, solved)
     if caught:
         reward -= r.predator_penalty
     w.episode_step += 1

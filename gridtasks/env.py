@@ -181,9 +181,19 @@ class GridTaskEnv(gym.Env):
         return self.config.grid_size, self.config.grid_size
 
     @property
+    def reward_bound(self) -> float:
+        """The largest |reward| one step can give: completing the task (or reaching the best-paid stage) plus 100
+        for a subgoal, a lost-progress penalty or a predator on the same step; 200 unless a task's ladder pays more.
+        """
+        r = self.rules[0]
+        return float(max(r["completion_reward"], r["stage_reward"].max())) + 100.0
+
+    @property
     def visit_grid(self) -> VisitGrid:
-        """Visitation maps of the grid tasks count whole cells: the agent's (x, y) is cell [y, x]."""
-        return VisitGrid(self.grid_shape)
+        """Visitation maps of the grid tasks count whole cells: the agent's (x, y) is cell [y, x], inside a
+        one-cell wall ring.
+        """
+        return VisitGrid(self.grid_shape, wall=1)
 
     @property
     def world(self) -> np.void:
@@ -354,7 +364,8 @@ class GridTaskVectorEnv(VectorEnv):
     def _info(self) -> dict:
         s = self._state
         return {"solved": self.last_solved, "caught": self.last_caught, "agent_pos": s["agent"].copy(),
-                "lifetime_step": s["lifetime_step"].copy(), "completions": s["completions"].copy()}
+                "lifetime_step": s["lifetime_step"].copy(), "completions": s["completions"].copy(),
+                "made": s["made"][:, list(self.template.products)].sum(1)}
 
     def render(self):
         """A tuple with one RGB frame per world."""

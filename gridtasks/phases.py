@@ -42,8 +42,6 @@ from gridtasks.records import (
     SPARSE,
     STEP_DX,
     STEP_DY,
-    SUBGOAL_REWARD,
-    TASK_REWARD,
     VIEW,
     VIEW_CELLS,
     WAYPOINT,
@@ -54,9 +52,11 @@ from gridtasks.records import (
 
 @nb.njit(cache=True)
 def act(w, r, action: int):
-    """Apply the agent's action. Returns the step's events (picked, made, dropped, delivered)."""
+    """Apply the agent's action. Returns the step's events (picked, made, placed_on, dropped, delivered):
+    ``placed_on`` is the object a carried item was combined with (the recipe's second ingredient).
+    """
     x, y = w.agent[0], w.agent[1]
-    picked = made = dropped = 0
+    picked = made = placed_on = dropped = 0
     delivered = False
     if action < 4:
         nx, ny = x + DX[action], y + DY[action]
@@ -89,8 +89,8 @@ def act(w, r, action: int):
             w.grid[y, x], w.age[y, x] = product, 0
             w.inventory = 0
             w.made[product] += 1
-            made = product
-    return picked, made, dropped, delivered
+            made, placed_on = product, target
+    return picked, made, placed_on, dropped, delivered
 
 
 @nb.njit(cache=True)
@@ -198,23 +198,25 @@ def wither(w, r) -> None:
 
 
 @nb.njit(cache=True)
-def task_reward(w, r, picked: int, made: int, dropped: int, solved: bool) -> float:
-    """Reward of the task under the rules' reward mode (completion is +100 in every mode)."""
+def task_reward(w, r, picked: int, made: int, placed_on: int, dropped: int, solved: bool) -> float:
+    """Reward of the task under the rules' reward mode: ``completion_reward`` (+100 unless a task's ladder says
+    otherwise) in every mode, and in the subgoal modes the ``stage_reward`` of the furthest stage this step reached.
+    """
     if solved:
         w.stage_done[:] = 0
-        return TASK_REWARD
+        return r.completion_reward
     if r.reward_mode == SPARSE:
         return 0.0
     stage = -1
     if picked != 0:
         stage = r.stage_on_pickup[picked]
     if made != 0:
-        stage = max(stage, r.stage_on_made[made])
+        stage = max(stage, r.stage_on_made[made], r.stage_on_placed[placed_on])
     if stage >= 0 and r.reward_mode == WAYPOINT and r.waypoint_repeats:
-        return SUBGOAL_REWARD  # the original's waypoint reward: every pick-up and product pays, farmable
+        return r.stage_reward[stage]  # the original's waypoint reward: every pick-up and product pays, farmable
     if stage >= 0 and w.stage_done[stage] == 0:
         w.stage_done[stage] = 1
-        return SUBGOAL_REWARD
+        return r.stage_reward[stage]
     penalised = r.reward_mode == ONE_TIME or r.reward_mode == DISTANCE
     if penalised and dropped != 0 and r.loses_progress_on_drop[dropped] != 0:
         return LOST_PROGRESS_PENALTY

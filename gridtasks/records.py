@@ -125,6 +125,7 @@ def rules_dtype(n: int) -> np.dtype:
             ("deliver_item", np.int64),  # placing this item on deliver_target completes the task
             ("deliver_target", np.int64),
             ("goal_pickup", np.int64),  # picking up this code completes the task (0: none)
+            ("goal_made", np.int64),  # making this code completes the task (0: none); reset-free, it is used up
             ("max_material", np.int64),  # workers dispense only while at most this many of the material are on the grid
             ("num_predators", np.int64),
             ("predator_lifespan", np.int64),
@@ -132,6 +133,9 @@ def rules_dtype(n: int) -> np.dtype:
             ("predator_penalty", np.float64),
             ("stage_on_pickup", np.int64, (NC,)),  # subgoal stage reached by picking up a code, -1 none
             ("stage_on_made", np.int64, (NC,)),  # subgoal stage reached by making a code, -1 none
+            ("stage_on_placed", np.int64, (NC,)),  # stage reached by combining the carried item onto a code, -1 none
+            ("stage_reward", np.float64, (MAX_STAGES,)),  # reward of reaching each stage (subgoal modes)
+            ("completion_reward", np.float64),  # reward of completing the task (every mode)
             ("loses_progress_on_drop", np.uint8, (NC,)),
             ("targets", np.int64, (NC, NUM_TARGET_GROUPS)),  # per carried code: code bitmasks, by priority
         ]
@@ -150,6 +154,9 @@ def new_rules(n: int) -> np.ndarray:
     r["channel"] = -1
     r["stage_on_pickup"] = -1
     r["stage_on_made"] = -1
+    r["stage_on_placed"] = -1
+    r["stage_reward"] = SUBGOAL_REWARD
+    r["completion_reward"] = TASK_REWARD
     r["growth_cap"] = (n - 2) ** 2 // 8
     r["base_deer"] = Code.DEER
     r["wander_moves"] = 4

@@ -29,9 +29,13 @@ EVAL_STREAM = 0xE7A1
 """Spawn key that separates evaluation draws from every training stream of a seed."""
 
 
-def evaluation_kwargs(test_kwargs: dict, eval_horizon: int | None) -> dict:
-    """The test MDP's keyword arguments with each rollout ``eval_horizon`` long (None: the test horizon)."""
-    return {**test_kwargs, "horizon": eval_horizon or test_kwargs["horizon"]}
+def evaluation_kwargs(test_kwargs: dict, eval_horizon: int | None, eval_dynamism: float = 0.0,
+                      eval_env_kwargs: dict | None = None) -> dict:
+    """The test MDP's keyword arguments with each rollout ``eval_horizon`` long (None: the test horizon), at
+    ``eval_dynamism`` (0: the paper's static test MDP) and with the task parameters ``eval_env_kwargs`` changed.
+    """
+    return {**test_kwargs, **(eval_env_kwargs or {}), "dynamism": eval_dynamism,
+            "horizon": eval_horizon or test_kwargs["horizon"]}
 
 
 class ActionValues(Protocol):
@@ -52,6 +56,12 @@ class EvalResult:
     divergence gauge, see `train.experiments.report.stats.diverged`."""
     steps_to_solve: np.ndarray
     """(K, R) environment steps each rollout took to solve its layout, -1 where it did not."""
+    action_counts: np.ndarray
+    """(K, actions) how often each action was the greedy one (argmax Q) at the rollouts' steps, whether or not
+    epsilon then replaced it: the policy's own choices, for `collapse`."""
+    made: np.ndarray
+    """(K,) share of rollouts in which the task's product was made (factory: an axe; NaN for the food
+    collector, which makes nothing)."""
 
     @property
     def solved(self) -> np.ndarray:
@@ -62,6 +72,16 @@ class EvalResult:
     def success(self) -> np.ndarray:
         """(K,) fraction of rollouts solved."""
         return self.solved.mean(1)
+
+    @property
+    def top_action(self) -> np.ndarray:
+        """(K,) each agent's most frequent greedy action."""
+        return self.action_counts.argmax(1)
+
+    @property
+    def top_action_share(self) -> np.ndarray:
+        """(K,) the share of the rollouts' steps at which that action was the greedy one (1 / actions if even)."""
+        return self.action_counts.max(1) / np.maximum(self.action_counts.sum(1), 1)
 
     @property
     def median_steps_to_solve(self) -> np.ndarray:
@@ -96,28 +116,38 @@ class Evaluator:
         live = np.ones(k * r, dtype=bool)
         steps_to_solve = np.full(k * r, -1)
         returns = np.zeros(k * r)
+        made = np.zeros(k * r, dtype=bool)
+        makes = True  # the environment reports products made (grid tasks)
         max_q = torch.zeros(k)
+        counts = np.zeros(k * self.num_actions, dtype=np.int64)
+        world_agent = np.repeat(np.arange(k), r) * self.num_actions  # each world's agent, as an offset into counts
         signalled = None
         for t in range(self.horizon):
             if stop_requested():  # finish within a second of a signal (then checkpoint), or give up
                 signalled = signalled or time.monotonic()
                 if time.monotonic() - signalled > STOP_GRACE_S:
                     raise Interrupted("a signal during a long evaluation")
-            actions = self._actions(agent, obs, rngs, max_q)
+            actions, greedy = self._actions(agent, obs, rngs, max_q)
+            counts += np.bincount(world_agent[live] + greedy[live], minlength=counts.size)
             obs, reward, terminated, truncated, info = self.env.step(actions)
             returns += np.where(live, reward, 0.0)
             solved_now = np.asarray(info.get("solved", np.zeros(k * r, dtype=bool)), dtype=bool)
+            makes = makes and "made" in info
+            if makes:
+                made |= live & (np.asarray(info["made"]) > 0)
             just_solved = live & (steps_to_solve < 0) & solved_now  # -1: not solved before
             steps_to_solve[just_solved] = t + 1
             live &= ~(terminated | truncated)
             if not live.any():
                 break
-        return EvalResult(returns.reshape(k, r).mean(1), max_q.numpy().astype(np.float64), steps_to_solve.reshape(k, r))
+        made_share = made.reshape(k, r).mean(1) if makes else np.full(k, np.nan)
+        return EvalResult(returns.reshape(k, r).mean(1), max_q.numpy().astype(np.float64), steps_to_solve.reshape(k, r),
+                          counts.reshape(k, self.num_actions), made_share)
 
     def _actions(self, agent: ActionValues, obs: np.ndarray, rngs: Sequence[np.random.Generator],
-                 max_q: torch.Tensor) -> np.ndarray:
-        """Epsilon-greedy actions of every world (agent k plays worlds k*R ... k*R + R - 1); raises each
-        agent's entry of ``max_q`` to the largest |Q| of this step (a non-finite value makes it NaN for good).
+                 max_q: torch.Tensor) -> tuple[np.ndarray, np.ndarray]:
+        """Epsilon-greedy and greedy actions of every world (agent k plays worlds k*R ... k*R + R - 1); raises
+        each agent's entry of ``max_q`` to the largest |Q| of this step (a non-finite value makes it NaN for good).
         """
         k, r = self.num_agents, self.rollouts
         with torch.no_grad():
@@ -128,7 +158,7 @@ class Evaluator:
             greedy = q.argmax(-1).numpy()
         draws = np.stack([rng.random((r, 2)) for rng in rngs])  # (K, R, [explore?, which action])
         random_actions = (draws[..., 1] * self.num_actions).astype(np.int64)
-        return np.where(draws[..., 0] < self.epsilon, random_actions, greedy).reshape(-1)
+        return np.where(draws[..., 0] < self.epsilon, random_actions, greedy).reshape(-1), greedy.reshape(-1)
 
     def close(self) -> None:
         """Release the environment."""

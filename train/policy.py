@@ -70,7 +70,8 @@ class Policy:
     @property
     def test_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of the test MDP the policy is evaluated in (at the run's evaluation horizon)."""
-        return evaluation_kwargs(self._info.test_kwargs, self.cfg.eval.eval_horizon)
+        ev = self.cfg.eval
+        return evaluation_kwargs(self._info.test_kwargs, ev.eval_horizon, ev.eval_dynamism, ev.eval_env_kwargs)
 
     @property
     def task(self) -> str:
@@ -98,7 +99,9 @@ class Policy:
         ``dynamism`` the test MDP's (0, static, in the paper's protocol).
         """
         eps = self.cfg.eval.eval_epsilon if epsilon is None else epsilon
-        kwargs = self.test_kwargs if horizon is None else evaluation_kwargs(self._info.test_kwargs, horizon)
+        ev = self.cfg.eval
+        kwargs = (self.test_kwargs if horizon is None else
+                  evaluation_kwargs(self._info.test_kwargs, horizon, ev.eval_dynamism, ev.eval_env_kwargs))
         if dynamism is not None:
             kwargs = {**kwargs, "dynamism": dynamism}
         evaluator = Evaluator(get_task(self.task).env_id, kwargs, 1, rollouts, eps, self._info.num_actions,

@@ -31,15 +31,23 @@ from train.memory import checkpoint_limit
 from train.safeio import UnsafeFileError, open_regular, read_npy, real_dir
 from train.statecheck import check_counter
 
-__all__ = ["METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write", "check_same_run",
-           "read_visits", "write_visits"]
+__all__ = ["ADDED_COLUMNS", "METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write",
+           "check_same_run", "read_visits", "write_visits"]
 
-METRIC_COLUMNS = ("step", "seed", "epsilon", "loss", "max_q", "success", "return", "train_reward",
-                  "steps_per_s")
+METRIC_COLUMNS = ("step", "seed", "epsilon", "loss", "max_q", "top_action", "top_action_share", "corner_share",
+                  "success", "made", "return", "train_reward", "steps_per_s")
 """Columns of metrics.csv. ``loss`` is the mean TD loss of the gradient steps since the previous evaluation;
 ``max_q`` the largest |Q| the evaluation's forward passes produced (NaN if one was not finite; absent in
-files written before it existed); ``return`` is the mean validation return; ``train_reward`` the summed
-training reward since the previous evaluation; ``steps_per_s`` environment steps per second per seed."""
+files written before it existed); ``top_action`` the greedy policy's most frequent action over the validation
+rollouts' steps and ``top_action_share`` its share of them; ``corner_share`` the share of the training visits
+since the previous evaluation that fell on the four corner cells inside the wall (the three collapse columns
+are absent in files written before them); ``made`` the share of validation rollouts in which the task's product
+was made (factory: an axe, whatever the goal; NaN for the food collector; absent before it existed); ``return``
+is the mean validation return; ``train_reward`` the
+summed training reward since the previous evaluation; ``steps_per_s`` environment steps per second per seed."""
+ADDED_COLUMNS = ("top_action", "top_action_share", "corner_share", "made")
+"""The columns that files written before the collapse measurements lack (`METRIC_COLUMNS`); a checkpoint's rows
+without them still load (read as NaN)."""
 
 EXPERIMENT_FILE = "experiment.json"
 """Description of an experiment directory (``OUT/EXPERIMENT/``, whose runs are ``TASK/CONDITION/`` below it),

@@ -126,12 +126,15 @@ def check_replay(saved: Any, live: dict[str, np.ndarray], capacity: int, num_act
         _finite(saved["obs"], "replay/obs")
 
 
-def check_rows(rows: Any, columns: tuple[str, ...]) -> None:
-    """Metric rows: a list of dicts with exactly ``columns``, each value a number."""
+def check_rows(rows: Any, columns: tuple[str, ...], optional: tuple[str, ...] = ()) -> None:
+    """Metric rows: a list of dicts with exactly ``columns`` (or all but the ``optional`` ones, as written before
+    those existed), each value a number.
+    """
     if not isinstance(rows, list) or len(rows) > MAX_ROWS:
         raise ValueError("rows is not a list of metric rows")
+    allowed = (set(columns), set(columns) - set(optional))
     for row in rows:
-        if not isinstance(row, dict) or set(row) != set(columns) or not all(
+        if not isinstance(row, dict) or set(row) not in allowed or not all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in row.values()):
             raise ValueError(f"a metric row is not a mapping of {', '.join(columns)} to numbers")
 
@@ -140,7 +143,7 @@ def check_state(state: dict[str, Any], trainer: Any, part: int = 0) -> None:
     """Raise ValueError unless ``state`` (a checkpoint's tree) is one that part ``part`` of ``trainer`` may
     load, value by value.
     """
-    from train.rundir import METRIC_COLUMNS
+    from train.rundir import ADDED_COLUMNS, METRIC_COLUMNS
 
     live = trainer.state_dict(part)
     piece = trainer.parts[part]
@@ -167,6 +170,10 @@ def check_state(state: dict[str, Any], trainer: Any, part: int = 0) -> None:
     visits = _array(state.get("visits"), live["visits"], "visits")
     if visits.min(initial=0) < 0:
         raise ValueError("visits holds negative counts")
+    if "visits_at_eval" in state:  # absent in checkpoints written before the corner share
+        earlier = _array(state["visits_at_eval"], live["visits_at_eval"], "visits_at_eval")
+        if earlier.min(initial=0) < 0 or (earlier > visits).any():
+            raise ValueError("visits_at_eval holds counts that are negative or above the visits")
     _array(state.get("autoreset"), live["autoreset"], "autoreset")
     _finite(_array(state.get("train_reward"), live["train_reward"], "train_reward"), "train_reward")
     _array(state.get("loss_sum"), live["loss_sum"], "loss_sum")
@@ -179,4 +186,4 @@ def check_state(state: dict[str, Any], trainer: Any, part: int = 0) -> None:
             raise ValueError("obs holds values other than 0 and 1, which this task never observes")
     if state.get("env") is not None:  # the grid worlds are checked value by value where they are restored
         check_tree(state["env"], env_state(piece.env), "env")
-    check_rows(state.get("rows"), METRIC_COLUMNS)
+    check_rows(state.get("rows"), METRIC_COLUMNS, ADDED_COLUMNS)

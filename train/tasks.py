@@ -56,6 +56,11 @@ def get_task(name: str) -> Task:
     return TASKS[name]
 
 
+DEFAULT_REWARD_BOUND = 200.0
+"""A per-step |reward| no task's default rewards reach: a completion's +100 and a subgoal or penalty of 100 on the
+same step (the food collector's are a few units)."""
+
+
 @dataclass(frozen=True)
 class EnvInfo:
     """What the trainer needs to know about a task's environment, read from one probe instance."""
@@ -70,6 +75,9 @@ class EnvInfo:
     """The visitation map: its shape and the cell of each agent position."""
     test_kwargs: dict[str, Any]
     """Keyword arguments of the evaluation MDP (`test_mdp_kwargs()`)."""
+    reward_bound: float = DEFAULT_REWARD_BOUND
+    """The largest |reward| one step of the training environment can give (its ``reward_bound``, where it has
+    one): the scale of the divergence gauge."""
 
     @property
     def visit_shape(self) -> tuple[int, int]:
@@ -115,7 +123,7 @@ def probe(task: Task, env_cfg: EnvConfig) -> EnvInfo:
             raise ValueError(f"{task.env_id}: observation_split {base.observation_split} does not add up "
                              f"to the observation size {obs_dim}")
         return EnvInfo(obs_dim, int(view_dim), int(env.action_space.n), base.visit_grid,
-                       dict(base.test_mdp_kwargs()))
+                       dict(base.test_mdp_kwargs()), float(getattr(base, "reward_bound", DEFAULT_REWARD_BOUND)))
     finally:
         env.close()
 
@@ -141,6 +149,13 @@ def step_worlds(env: gym.vector.VectorEnv, actions: np.ndarray
         return (*(a if env.copy else a.copy() for a in arrays), positions)  # never the env's own buffers
     obs, reward, terminated, truncated, info = env.step(actions)
     return obs, reward, terminated, truncated, np.asarray(info["agent_pos"])
+
+
+def completions(env: gym.vector.VectorEnv) -> np.ndarray | None:
+    """Which worlds of a training vector env completed their task on the last step (None where the task has no
+    completion: the food collector).
+    """
+    return env.last_solved if isinstance(env, gridtasks.GridTaskVectorEnv) else None
 
 
 # ---- environment state as data (for checkpoints) -------------------------------------------------------

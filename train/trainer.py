@@ -17,7 +17,6 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -30,10 +29,21 @@ from train.config import TrainConfig
 from train.evaluate import Evaluator, evaluation_kwargs
 from train.memory import check_memory
 from train.packing import check_device, check_packable
-from train.rundir import RunDir, RunDirError
+from train.parts import Part
+from train.rundir import ADDED_COLUMNS, RunDir, RunDirError
 from train.runlog import RunLogger, postfix, progress_bar, stop_on_signal
 from train.statecheck import check_state
-from train.tasks import EnvInfo, Task, env_state, get_task, make_vector_env, probe, restore_env_state, step_worlds
+from train.tasks import (
+    EnvInfo,
+    Task,
+    completions,
+    env_state,
+    get_task,
+    make_vector_env,
+    probe,
+    restore_env_state,
+    step_worlds,
+)
 
 __all__ = ["CHECKPOINT_VERSION", "STREAMS", "Part", "Trainer", "resolve", "seed_streams"]
 
@@ -45,25 +55,6 @@ def resolve(cfg: TrainConfig, task: Task, info: EnvInfo) -> TrainConfig:
     """Fill the task-dependent defaults (validation rollouts, test horizon) into ``cfg``."""
     return cfg.replace(eval_rollouts=cfg.eval.eval_rollouts or task.eval_rollouts,
                        eval_horizon=cfg.eval.eval_horizon or int(info.test_kwargs["horizon"]))
-
-
-@dataclass
-class Part:
-    """One condition inside a trainer: its rows of the learner, its worlds and what it writes."""
-
-    cfg: TrainConfig
-    rows: slice
-    env: Any
-    run_dir: RunDir | None
-    visits: np.ndarray
-    metric_rows: list[dict[str, Any]] = field(default_factory=list)
-    resumed_from: int = -1
-    """The step a resumed run continued from (-1: a fresh run)."""
-
-    @property
-    def seeds(self) -> list[int]:
-        """The seeds of this condition."""
-        return self.cfg.run.seed_list
 
 
 class Trainer:
@@ -215,7 +206,7 @@ class Trainer:
             obs, reward, terminated, truncated = results[0][:4]
         else:
             obs, reward, terminated, truncated = (np.concatenate([r[i] for r in results]) for i in range(4))
-        self.learner.observe(stored, self.obs, actions, reward, terminated, truncated, obs)
+        self.learner.observe(stored, self.obs, actions, reward, terminated, truncated, obs, self._completed())
         self.autoreset = (terminated | truncated) & stored
         for part, result in zip(self.parts, results):
             rows, cols = self.info.visit_grid.cells(result[4])
@@ -223,6 +214,15 @@ class Trainer:
         self.train_reward += reward
         self.obs = obs.astype(np.float32, copy=False)
         self.step += 1
+
+    def _completed(self) -> np.ndarray | None:
+        """The worlds that completed their task on the last step, where the configuration stores completions as
+        terminal (`DQNConfig.completion_terminal`); else None.
+        """
+        if not self.cfg.dqn.completion_terminal:
+            return None
+        done = [completions(p.env) for p in self.parts]
+        return None if any(d is None for d in done) else np.concatenate(done)
 
     def learn(self) -> None:
         """The learner's update phase."""
@@ -245,7 +245,8 @@ class Trainer:
         """The evaluation protocol's batched environment over every row (built on first use)."""
         if self._evaluator is None:
             ev = self.cfg.eval
-            self._evaluator = Evaluator(self.task.env_id, evaluation_kwargs(self.info.test_kwargs, ev.eval_horizon),
+            kwargs = evaluation_kwargs(self.info.test_kwargs, ev.eval_horizon, ev.eval_dynamism, ev.eval_env_kwargs)
+            self._evaluator = Evaluator(self.task.env_id, kwargs,
                                         self.num_agents, ev.eval_rollouts, ev.eval_epsilon, self.info.num_actions,
                                         threads=self.cfg.run.env_threads)
         return self._evaluator
@@ -257,13 +258,18 @@ class Trainer:
         rate = steps / seconds if seconds > 0 else math.nan
         losses = self.learner.take_losses()
         out = []
+        top_action, top_share = result.top_action, result.top_action_share
         for part in self.parts:
+            corners = part.recent_corner_share(self.info.visit_grid.wall)
             rows = [{"step": self.step, "seed": seed, "epsilon": part.cfg.dqn.epsilon(self.step),
                      "loss": float(losses[k]), "max_q": float(result.max_q[k]),
+                     "top_action": int(top_action[k]), "top_action_share": float(top_share[k]),
+                     "corner_share": float(corners[i]),
                      "success": float(result.success[k]) if self.task.metric == "success" else math.nan,
+                     "made": float(result.made[k]),
                      "return": float(result.returns[k]), "train_reward": float(self.train_reward[k]),
                      "steps_per_s": rate}
-                    for k, seed in zip(range(part.rows.start, part.rows.stop), part.seeds)]
+                    for i, (k, seed) in enumerate(zip(range(part.rows.start, part.rows.stop), part.seeds))]
             part.metric_rows += rows
             out.append(rows)
         self.train_reward[:] = 0.0
@@ -331,6 +337,7 @@ class Trainer:
             "env": env_state(p.env) if self.obs is not None else None,
             **self.learner.state_dict(p.rows),
             "torch_rng": torch.get_rng_state(), "visits": p.visits.copy(),
+            "visits_at_eval": (p.visits_at_eval if p.visits_at_eval is not None else np.zeros_like(p.visits)).copy(),
             "train_reward": self.train_reward[p.rows].copy(), "rows": list(p.metric_rows),
             "last_checkpoint": self.last_checkpoint,
         }
@@ -365,8 +372,10 @@ class Trainer:
             self.obs[part.rows] = state["obs"]
         self.autoreset[part.rows] = np.asarray(state["autoreset"], dtype=bool)
         part.visits[...] = state["visits"]
+        # checkpoints written before the corner share existed lack it: the next interval then starts here
+        part.visits_at_eval = np.array(state.get("visits_at_eval", state["visits"]), dtype=np.int64)
         self.train_reward[part.rows] = state["train_reward"]
-        part.metric_rows[:] = list(state["rows"])
+        part.metric_rows[:] = [{**dict.fromkeys(ADDED_COLUMNS, math.nan), **row} for row in state["rows"]]
         self.last_checkpoint = int(state["last_checkpoint"])
 
     def _close_envs(self) -> None:

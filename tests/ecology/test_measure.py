@@ -62,3 +62,18 @@ def test_write_video_that_fails_midway_leaves_no_file(tmp_path):
     with pytest.raises(ValueError, match="frame 1 has size"):
         write_video(frames, tmp_path / "clip.mp4")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_corner_cells_lie_inside_the_wall_and_the_share_counts_them():
+    from ecology import VisitGrid, corner_cells, corner_share
+
+    rows, cols = corner_cells((6, 8), wall=1)
+    assert list(zip(rows.tolist(), cols.tolist())) == [(1, 1), (1, 6), (4, 1), (4, 6)]
+    rows, cols = corner_cells((4, 4), wall=0)
+    assert list(zip(rows.tolist(), cols.tolist())) == [(0, 0), (0, 3), (3, 0), (3, 3)]
+    assert VisitGrid((6, 8), wall=1).corners()[1].tolist() == [1, 6, 1, 6]
+    visits = np.zeros((2, 6, 8), np.int64)
+    visits[0, 1, 1], visits[0, 4, 6], visits[0, 2, 3] = 2, 1, 1  # three of four visits in corners
+    assert corner_share(visits, wall=1).tolist() == [0.75, 0.0]  # no visits at all reads as 0
+    with pytest.raises(ValueError, match="no four inner corners"):
+        corner_cells((3, 3), wall=1)

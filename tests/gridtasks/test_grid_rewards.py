@@ -188,17 +188,49 @@ FACTORY_SCRIPT = [INTERACT, SOUTH, PLACE, NORTH, EAST, EAST, INTERACT, SOUTH, WE
         ("sparse", [0] * 16 + [100]),
         # +1 receive a material (once), +1 make the axe, +1 hold the axe; dropping costs nothing here
         ("subgoal", [1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 100]),
-        ("one_time", [1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 100]),
+        # the released ladder (the default): metal 1 and wood 1 once a cycle, the wood-onto-metal axe reaches the
+        # metal stage again (nothing), holding the axe 100, the delivery 10 000
+        ("one_time", [1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 100, 0, 0, 0, 0, 10_000]),
+        # every event pays: each material 1, the axe made 100, picked up 100, delivered 10 000
+        ("waypoint", [1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 100, 100, 0, 0, 0, 0, 10_000]),
+        ("flat one_time", [1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 100]),
+        ("flat waypoint", [1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1, 0, 0, 0, 0, 100]),
     ],
 )
 def test_factory_rewards_along_a_solution(mode, expected):
-    env = make(gridtasks.FactoryEnv, 7, reward=mode)
+    ladder = {"reward_ladder": "flat"} if mode.startswith("flat ") else {}
+    env = make(gridtasks.FactoryEnv, 7, reward=mode.removeprefix("flat "), **ladder)
     world = world_from_map(env, FACTORY, agent=(2, 3))
     rewards, ends, info = run(env, FACTORY_SCRIPT)
     assert rewards == expected
     assert ends[-1] == (True, False) and all(e == (False, False) for e in ends[:-1])
     assert (info["pickup_metal"], info["pickup_wood"], info["pickup_axe"], info["made_axe"]) == (1, 1, 1, 1)
     assert world["grid"][1, 1] == Code.DEPOT and world["inventory"] == 0
+
+
+def test_factory_released_distance_adds_the_distance_only_where_no_stage_pays():
+    env = make(gridtasks.FactoryEnv, 7, reward="distance")
+    world_from_map(env, FACTORY, agent=(2, 3))
+    rewards, _, _ = run(env, FACTORY_SCRIPT)
+    stages = [r for r in rewards if r >= 1]
+    assert stages == [1, 1, 100, 10_000] and all(-0.1 < r <= 0 for r in rewards if r < 1)
+
+
+def test_factory_goal_make_axe_ends_when_the_axe_is_made():
+    env = make(gridtasks.FactoryEnv, 7, reward="waypoint", goal="make_axe")
+    world_from_map(env, FACTORY, agent=(2, 3))
+    rewards, ends, info = run(env, FACTORY_SCRIPT[:11])  # up to the place that makes the axe
+    assert rewards == [1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 100]  # materials 1 each, farmable; making the axe 100
+    assert ends[-1] == (True, False) and info["solved"] and info["made_axe"] == 1
+    assert env.test_mdp_kwargs()["goal"] == "make_axe"
+
+
+def test_factory_goal_make_axe_uses_the_axe_up_when_reset_free():
+    env = make(gridtasks.FactoryEnv, 7, reward="sparse", goal="make_axe", reset_free=True)
+    world = world_from_map(env, FACTORY, agent=(2, 3))
+    rewards, ends, info = run(env, FACTORY_SCRIPT[:11])
+    assert rewards[-1] == 100 and not any(t or u for t, u in ends) and info["completions"] == 1
+    assert world["grid"][4, 2] == Code.EMPTY and world["inventory"] == 0  # no axe left to deliver or farm
 
 
 def test_factory_delivery_is_repeatable_when_reset_free():

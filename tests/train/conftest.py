@@ -40,8 +40,23 @@ SMOKE_TASKS = {
     "rnd": None,
     "walls": None,
     "measure": ["factory"],
+    "factory-released": None,
+    "factory-make-axe": None,
+    "hunting-released": None,
+    "hunting-released-fig4": None,
+    "foodcollector-episodes-1000": None,
+    "hunting-behaviour": None,
 }
 """Which tasks of each experiment the smoke fixture runs (None: all of them)."""
+SMOKE_CONDITIONS = {
+    "factory-released": ["dynamic-reset-free", "one-time-reward"],
+    "factory-make-axe": ["static-episodic", "rnd"],
+    "hunting-released": ["env-shaping-waypoint-260k", "distance-reward"],
+    "hunting-released-fig4": ["dynamic-episodic-distance"],
+    "foodcollector-episodes-1000": ["dynamic-episodic"],
+    "hunting-behaviour": ["eps-1"],
+}
+"""Which conditions of an experiment the smoke fixture runs where not all (each new kind of setting once)."""
 
 
 def run_cli(*args: str, timeout: float = 300, check: bool = True) -> subprocess.CompletedProcess:
@@ -60,6 +75,12 @@ def smoke_tasks() -> dict:
 
 
 @pytest.fixture(scope="session")
+def smoke_conditions() -> dict:
+    """`SMOKE_CONDITIONS` as a fixture."""
+    return SMOKE_CONDITIONS
+
+
+@pytest.fixture(scope="session")
 def cli():
     """`run_cli` as a fixture (test modules do not import each other)."""
     return run_cli
@@ -74,7 +95,7 @@ def smoke_root(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("smoke")
     jobs = []
     for name, tasks in SMOKE_TASKS.items():
-        exp_jobs = plan(EXPERIMENTS[name], "smoke", root, tasks)
+        exp_jobs = plan(EXPERIMENTS[name], "smoke", root, tasks, conditions=SMOKE_CONDITIONS.get(name))
         write_experiment_file(EXPERIMENTS[name], "smoke", exp_jobs, root)
         jobs += exp_jobs
     results = run_jobs(jobs, "local", workers=os.cpu_count() or 2, progress=False)

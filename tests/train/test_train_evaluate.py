@@ -85,3 +85,36 @@ def test_steps_to_solve_count_the_steps_a_greedy_rollout_takes():
             taken, done = taken + 1, terminated or truncated
         assert (taken if info.get("solved") else -1) == expected, seed
     assert result.median_steps_to_solve[0] == np.median(steps[steps >= 0])
+
+
+def test_greedy_actions_are_counted_per_agent_over_the_live_steps():
+    evaluator = _evaluator(2)
+    try:  # agent 0 prefers action 0; agent 1's action 0 is worth less than the others' 0, so argmax picks 1
+        result = evaluator(ConstantQ([1.0, -1.0], 7), [0, 1], step=0)
+    finally:
+        evaluator.close()
+    assert result.action_counts.shape == (2, 7)
+    assert result.action_counts.sum(1).tolist() == [15, 15]  # 3 rollouts x 5 steps each, none solved
+    assert result.action_counts[0, 0] == 15 and result.action_counts[1, 1] == 15
+    assert result.top_action.tolist() == [0, 1] and result.top_action_share.tolist() == [1.0, 1.0]
+
+
+def test_the_evaluation_protocol_can_move_the_test_mdp_as_the_released_validation_did():
+    from train.evaluate import evaluation_kwargs
+    from train.trainer import Trainer
+
+    test = {"dynamism": 0.0, "horizon": 200, "deer_count": 2, "replenish": False}
+    assert evaluation_kwargs(test, None) == test  # the paper's protocol: the test MDP as it is
+    assert evaluation_kwargs(test, 100, 0.1, {"deer_count": 1}) == {**test, "dynamism": 0.1, "horizon": 100,
+                                                                      "deer_count": 1}
+    cfg = TrainConfig().replace(task="hunting", steps=400, eval_rollouts=2, eval_dynamism=0.2,
+                                eval_env_kwargs={"axe_count": 1}, buffer_size=1_000, progress=False)
+    trainer = Trainer(cfg)
+    try:
+        rules = trainer.evaluator.env.unwrapped.rules[0]
+        assert rules["initial"].sum() == 3  # two deer (the training default), one axe
+        assert trainer.evaluator.env.unwrapped.ecology.dynamism == 0.2
+    finally:
+        trainer.close()
+    with pytest.raises(ValueError, match="use --eval-horizon"):
+        TrainConfig().replace(eval_env_kwargs={"horizon": 50})

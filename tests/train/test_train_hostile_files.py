@@ -261,7 +261,10 @@ def test_a_signal_stops_an_endless_evaluation_within_seconds(tmp_path):
     args = ["train", "salad", "--steps", "400", *TINY, "--eval-horizon", "1000000000000", "--out", str(tmp_path / "r")]
     proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, stderr=subprocess.PIPE, text=True)
     try:
-        time.sleep(8)  # start-up, the warm-up and the first epoch: then the evaluation that never ends
+        deadline = time.monotonic() + 120  # start-up takes seconds on an idle machine, far longer on a loaded one
+        while not (tmp_path / "r" / "checkpoint.npz").exists() and time.monotonic() < deadline:
+            time.sleep(0.2)  # the step-0 checkpoint comes just before the run installs its signal handler
+        time.sleep(3)  # the warm-up and the first epoch: then the evaluation that never ends
         assert proc.poll() is None
         proc.send_signal(signal.SIGTERM)
         began = time.monotonic()

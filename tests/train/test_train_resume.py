@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import signal
 import subprocess
@@ -16,7 +17,7 @@ import pytest
 
 from train.cli import main
 from train.config import TrainConfig
-from train.rundir import RunDirError, check_same_run
+from train.rundir import ADDED_COLUMNS, RunDirError, check_same_run
 from train.trainer import Trainer
 
 REPO = Path(__file__).resolve().parents[2]
@@ -154,3 +155,43 @@ def test_sigterm_stops_at_the_epoch_end_with_a_checkpoint(tmp_path, monkeypatch)
     resumed = Trainer(SMALL.replace(steps=2000), tmp_path / "run", resume=True)
     assert resumed.step == 600 and resumed.epoch == 2
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL  # the handler is removed after the run
+
+
+def _epochs_then_evaluate(trainer: Trainer, epochs: int) -> None:
+    for _ in range(epochs):
+        trainer.train_epoch()
+    trainer.evaluate()
+
+
+def test_corner_share_counts_the_visits_since_the_last_evaluation_across_a_resume(tmp_path):
+    cfg = SMALL.replace(seeds=2, reset_free=True, checkpoint_every=10_000)
+    straight = Trainer(cfg)
+    _epochs_then_evaluate(straight, 1)
+    _epochs_then_evaluate(straight, 2)  # an interval of two epochs
+    first = Trainer(cfg, tmp_path / "run")
+    _epochs_then_evaluate(first, 1)
+    first.train_epoch()
+    first.save()  # a checkpoint between two evaluations
+    first.close()
+    resumed = Trainer(cfg, tmp_path / "run", resume=True)
+    _epochs_then_evaluate(resumed, 1)
+    for mine, theirs in zip(resumed.rows[-2:], straight.rows[-2:]):
+        assert mine["corner_share"] == theirs["corner_share"]
+    interval = straight.visits - straight.parts[0].visits_at_eval
+    assert interval.sum() == 0  # the snapshot moved to the last evaluation
+    for trainer in (straight, resumed):
+        trainer.close()
+
+
+def test_a_checkpoint_from_before_the_collapse_columns_still_resumes(tmp_path):
+    trainer = Trainer(SMALL.replace(steps=400), tmp_path / "run")
+    trainer.run()
+    state = trainer.state_dict()
+    trainer.close()
+    del state["visits_at_eval"]  # what a checkpoint written before issue 48 holds
+    state["rows"] = [{k: v for k, v in row.items() if k not in ADDED_COLUMNS} for row in state["rows"]]
+    again = Trainer(SMALL.replace(steps=400))
+    again.load_state_dict(state)
+    assert np.array_equal(again.parts[0].visits_at_eval, state["visits"])
+    assert all(math.isnan(row["top_action_share"]) for row in again.rows)
+    again.close()

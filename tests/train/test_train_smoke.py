@@ -43,6 +43,9 @@ def test_task_trains_end_to_end(task, tmp_path):
         assert math.isfinite(row["loss"]) and math.isfinite(row["return"])
         assert 0.0 < row["max_q"] < 1e4  # the divergence gauge of every evaluation
         assert 0.0 <= row["success"] <= 1.0 if TASKS[task].metric == "success" else math.isnan(row["success"])
+        assert 0 <= row["top_action"] < trainer.info.num_actions  # the collapse columns
+        assert 1.0 / trainer.info.num_actions <= row["top_action_share"] <= 1.0
+        assert 0.0 <= row["corner_share"] <= 1.0
     with open(tmp_path / "metrics.csv") as f:
         assert len(list(csv.DictReader(f))) == 4
     visits = np.load(tmp_path / "visits.npy")
@@ -80,6 +83,24 @@ def test_timeouts_are_stored_as_terminals_only_when_asked(timeouts_terminal):
     assert np.all((flags[truncated] & 1).astype(bool) == timeouts_terminal)
     ordinary = np.setdiff1d(np.flatnonzero(flags & 2), finals - 1)  # every other transition
     assert not (flags[ordinary] & 1).any()
+
+
+@pytest.mark.parametrize("completion_terminal", [False, True])
+def test_reset_free_completions_are_terminal_only_when_asked(completion_terminal):
+    cfg = TrainConfig().replace(task="salad", reset_free=True, steps=700, updates_per_epoch=1, eval_every=500,
+                                eval_rollouts=2, eval_horizon=5, buffer_size=2_000, progress=False,
+                                completion_terminal=completion_terminal)
+    trainer = Trainer(cfg)
+    trainer.train_epoch()
+    assert (trainer._completed() is not None) == completion_terminal  # the worlds' last_solved, where asked
+    obs = np.zeros((1, trainer.info.obs_dim), dtype=np.float32)
+    before = int(trainer.replay.size[0])
+    for completed in (True, False):  # a completion, then an ordinary step; the world goes on after both
+        trainer.learner.observe(np.array([True]), obs, np.array([4]), np.array([100.0 if completed else 0.0]),
+                                np.array([False]), np.array([False]), obs, np.array([completed]))
+    flags = trainer.replay.flags[0, before:int(trainer.replay.size[0])]
+    assert flags.tolist() == [2 | int(completion_terminal), 2]  # no final-observation slot: no episode ended
+    trainer.close()
 
 
 def test_tensorboard_logging_is_optional_and_lazy(tmp_path):

@@ -60,8 +60,11 @@ class Learner(Protocol):
         """Greedy actions (K, N) for observations (K, N, obs_dim) (evaluation and policies)."""
 
     def observe(self, stored: np.ndarray, obs: np.ndarray, actions: np.ndarray, reward: np.ndarray,
-                terminated: np.ndarray, truncated: np.ndarray, next_obs: np.ndarray) -> None:
-        """Record one environment step of the rows where ``stored`` (the others only reset their world)."""
+                terminated: np.ndarray, truncated: np.ndarray, next_obs: np.ndarray,
+                completed: np.ndarray | None = None) -> None:
+        """Record one environment step of the rows where ``stored`` (the others only reset their world);
+        ``completed``: the rows whose task was completed this step (None: unknown, none).
+        """
 
     def learn(self) -> None:
         """The update phase that follows a collection."""
@@ -201,11 +204,15 @@ class DQNLearner:
     # ---- storing and learning -------------------------------------------------------------------------
 
     def observe(self, stored: np.ndarray, obs: np.ndarray, actions: np.ndarray, reward: np.ndarray,
-                terminated: np.ndarray, truncated: np.ndarray, next_obs: np.ndarray) -> None:
+                terminated: np.ndarray, truncated: np.ndarray, next_obs: np.ndarray,
+                completed: np.ndarray | None = None) -> None:
         """Store the transitions of the rows where ``stored``; an episode's final observation gets its own
-        slot, as the last transition's next state.
+        slot, as the last transition's next state. With ``completion_terminal``, a completed task is a terminal
+        transition even where the world goes on (``completed``: the rows that completed theirs this step).
         """
         ends = terminated | (truncated & self.cfg.timeouts_terminal)  # the original's episodic rule, if asked
+        if completed is not None and self.cfg.completion_terminal:
+            ends = ends | completed  # the released factory script's rule, where asked
         self.replay.add(stored, self.replay.encode(obs), actions, reward, ends)
         ended = (terminated | truncated) & stored
         if ended.any():

@@ -49,9 +49,9 @@ def _add_field(group, f: dataclasses.Field, hint: Any, doc: str) -> None:
     elif origin is tuple:
         group.add_argument(flag(f.name), type=typing.get_args(hint)[0], nargs="+", metavar="N",
                            help=help_text, **common)
-    elif origin is dict:
-        group.add_argument("--env-kwarg", type=_parse_env_kwarg, action="append", metavar="KEY=VALUE",
-                           help=f"{doc} Repeatable.", **common)
+    elif origin is dict:  # env_kwargs -> --env-kwarg, eval_env_kwargs -> --eval-env-kwarg
+        group.add_argument(flag(f.name).removesuffix("s"), type=_parse_env_kwarg, action="append",
+                           metavar="KEY=VALUE", help=f"{doc} Repeatable.", **common)
     else:
         base = next((a for a in typing.get_args(hint) if a is not type(None)), hint)
         group.add_argument(flag(f.name), type=base, choices=f.metadata.get("choices"), help=help_text,
@@ -73,8 +73,9 @@ def given_settings(args: argparse.Namespace) -> dict[str, Any]:
     """The config fields given on the command line (flags left out are absent), tuples for lists."""
     names = {f.name for s in SECTIONS.values() for f in dataclasses.fields(s)}
     given = {key: value for key, value in vars(args).items() if key in names}
-    if "env_kwargs" in given:
-        given["env_kwargs"] = dict(given["env_kwargs"])
+    for name in ("env_kwargs", "eval_env_kwargs"):
+        if name in given:
+            given[name] = dict(given[name])
     for key, value in given.items():
         if isinstance(value, list):
             given[key] = tuple(value)

@@ -38,7 +38,17 @@ from train.experiments.choices import (
     SPARSE_EQUIVALENT,
     TUNED,
 )
+from train.experiments.conditions import (
+    FLAT_LADDER,
+    SMOKE,
+    dynamism_conditions,
+    quick,
+    shaping_conditions,
+    sweep_conditions,
+    with_reward,
+)
 from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
+from train.experiments.released import released_experiments
 
 __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS",
            "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE", "SHAPING_SCHEDULE", "SMOKE", "SPARSE_EQUIVALENT", "TUNED",
@@ -61,59 +71,6 @@ def job_config(experiment: Experiment, task: str, condition: Condition, budget: 
 
 
 # ---- the experiments -----------------------------------------------------------------------------------
-
-SMOKE = Budget(seeds=2, steps=1_000, eval_every=500, eval_rollouts=10, overrides={"updates_per_epoch": 100},
-               task_overrides={"foodcollector": {"eval_rollouts": 2, "eval_horizon": 100}})
-"""Seconds per condition, for tests: 100 updates per epoch, two evaluations on 10 layouts (food collector:
-2 short episodes)."""
-
-
-def _quick(seeds: int, steps: int | Mapping[str, int], eval_every: int = 10_000) -> Budget:
-    """A laptop budget: the food collector evaluates 5 episodes instead of 10."""
-    return Budget(seeds=seeds, steps=steps, eval_every=eval_every,
-                  task_overrides={"foodcollector": {"eval_rollouts": 5}})
-
-
-def _dynamism_conditions(task: str) -> tuple[Condition, ...]:
-    """{static, dynamic} x {episodic, reset-free} (Fig. 4)."""
-    p = DYNAMIC_P[task]
-    out = []
-    for dyn_name, dyn in (("static", 0.0), ("dynamic", p)):
-        for mode, reset_free in (("episodic", False), ("reset-free", True)):
-            label = f"{dyn_name}{f' p={p:g}' if dyn else ''}, {'non-episodic' if reset_free else 'episodic'}"
-            out.append(Condition(f"{dyn_name}-{mode}", label, {"dynamism": dyn, "reset_free": reset_free}))
-    return tuple(out)
-
-
-def _with_reward(conditions: tuple[Condition, ...], reward: str, note: str) -> tuple[Condition, ...]:
-    """The same conditions trained with another reward mode (names unchanged, labels annotated)."""
-    return tuple(Condition(c.name, f"{c.label}, {note}", {**c.overrides, "reward": reward}) for c in conditions)
-
-
-def _shaping_conditions(task: str, reset_free: bool = True, suffix: str = "") -> tuple[Condition, ...]:
-    """Env shaping + sparse / + subgoal, distance and one-time reward shaping, no shaping (Fig. 5, 8), less the
-    arms whose reward is the sparse one on ``task`` (`SPARSE_EQUIVALENT`).
-    """
-    base = {**SHAPING_BASE[task], "reset_free": reset_free}
-    schedule = SHAPING_SCHEDULE[task]
-    table = [("env-shaping-sparse", "env shaping, sparse reward", {"shaping": schedule, "reward": "sparse"}),
-             ("env-shaping-subgoal", "env shaping, subgoal reward", {"shaping": schedule, "reward": "subgoal"}),
-             ("distance-reward", "distance reward shaping", {"reward": "distance"}),
-             ("one-time-reward", "one-time reward shaping", {"reward": "one_time"}),
-             ("no-shaping", "no shaping, sparse reward", {"reward": "sparse"})]
-    if task == "foodcollector":  # no subgoals, hence no reward shaping (Fig. 5 caption)
-        table = [row for row in table if row[0] in ("env-shaping-sparse", "no-shaping")]
-    same = SPARSE_EQUIVALENT.get(task, frozenset())  # these arms would repeat the sparse arm of their shaping
-    table = [row for row in table if row[2]["reward"] not in same]
-    mode = ", non-episodic" if reset_free else ", episodic"
-    return tuple(Condition(name + suffix, label + (mode if suffix else ""), {**base, **knobs})
-                 for name, label, knobs in table)
-
-
-def _sweep_conditions(task: str, levels: tuple[float, ...]) -> tuple[Condition, ...]:
-    """Non-episodic training at each dynamism level (Fig. 6 left and middle)."""
-    return tuple(Condition(f"p{p:g}", f"p = {p:g}", {"dynamism": p, "reset_free": True}) for p in levels)
-
 
 SETTINGS_LR = 3e-4
 """Learning rate at the centre of the settings study (best of two earlier 10-seed runs at 500 000 steps: 27.5 %
@@ -176,7 +133,7 @@ LR_SWEEP = (("1e-5", 1e-5), ("3e-5", 3e-5), ("1e-4", 1e-4), ("3e-4", 3e-4), ("1e
 """The released salad script's learning rates (its names and values), the paper's Fig. 7 sweep."""
 
 
-def _lr_sweep_conditions() -> tuple[Condition, ...]:
+def _lrsweep_conditions() -> tuple[Condition, ...]:
     """The released salad sweep (Fig. 7): each rate, waypoint reward, episodic (H 100) and non-episodic.
 
     Two rates of each mode share every setting with arms run before (3e-4: the settings study's
@@ -192,7 +149,7 @@ def _lr_sweep_conditions() -> tuple[Condition, ...]:
 
 def _salad_experiments() -> list[Experiment]:
     """The salad-only experiments: the headline, the settings study and Fig. 2."""
-    salad_dyn = _dynamism_conditions("salad")
+    salad_dyn = dynamism_conditions("salad")
     return [
         Experiment(
             "headline", "Fig. 4 (salad panel)", "Salad: dynamism and resets",
@@ -200,7 +157,7 @@ def _salad_experiments() -> list[Experiment]:
             "sparse reward. The paper reports that static non-episodic training fails and dynamism helps; the "
             "quick budget (3 seeds x 120 000 steps) is far too short to show it.",
             {"salad": salad_dyn}, {"salad": 1_000_000}, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 120_000)}, heatmaps=True, videos=True),
+            {"smoke": SMOKE, "quick": quick(3, 120_000)}, heatmaps=True, videos=True),
         Experiment(
             "headline-waypoint", "Fig. 4 (salad panel), released scripts' reward", "Salad: dynamism and resets, "
             "waypoint reward",
@@ -208,15 +165,15 @@ def _salad_experiments() -> list[Experiment]:
             "ingredient picked up, farmable; +100 for the salad) instead of the paper text's sparse reward. "
             "The settings study found it the strongest setting after the learning rate. `make demo` runs its two "
             "non-episodic conditions at the quick budget, sized to the machine's speed (`ecorl run --minutes`).",
-            {"salad": _with_reward(salad_dyn, "waypoint", "waypoint reward")}, {"salad": 1_000_000}, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 100_000)}, heatmaps=True, videos=True),
+            {"salad": with_reward(salad_dyn, "waypoint", "waypoint reward")}, {"salad": 1_000_000}, 10,
+            {"smoke": SMOKE, "quick": quick(3, 100_000)}, heatmaps=True, videos=True),
         Experiment(
             "settings", "Fig. 4 (salad), settings", "Which settings reproduce the salad headline",
             "Dynamic salad (p = 0.1), episodic and non-episodic, varying one setting at a time where the "
             "paper's text and the released code disagree (reward, learning rate, batch size, episodic "
             "horizon). Its paper budget is the study's: 10 seeds x 500 000 steps per arm.",
             {"salad": _settings_conditions()}, {"salad": 500_000}, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 120_000)}, milestones=(250_000, 500_000)),
+            {"smoke": SMOKE, "quick": quick(3, 120_000)}, milestones=(250_000, 500_000)),
         Experiment(
             "salad-gap", "Fig. 4 (salad), the rest of the gap", "Why learned salad seeds plateau below the paper",
             "Issue 18's arms around the settings study's waypoint arms (dynamic salad p = 0.1, lr 3e-4; baselines "
@@ -226,20 +183,20 @@ def _salad_experiments() -> list[Experiment]:
             "stored as terminals (the original's rule). Its paper budget is the study's: 10 seeds x 500 000 "
             "steps per arm.",
             {"salad": _gap_conditions()}, {"salad": 500_000}, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 120_000)}, milestones=(250_000, 500_000)),
+            {"smoke": SMOKE, "quick": quick(3, 120_000)}, milestones=(250_000, 500_000)),
         Experiment(
             "lr-sweep", "Fig. 7", "The learning-rate sweep (salad)",
             "The released salad script's sweep, which the paper says chose its learning rate: lr 1e-5, 3e-5, "
             "1e-4, 3e-4 and 1e-3 on dynamic salad (p = 0.1) with the waypoint reward, episodic (horizon 100) "
             "and non-episodic. The rates 1e-4 and 3e-4 repeat arms of 'salad-gap' and 'settings'. Its paper "
             "budget is the settings study's: 10 seeds x 500 000 steps per arm.",
-            {"salad": _lr_sweep_conditions()}, {"salad": 500_000}, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 120_000)}, milestones=(250_000, 500_000)),
+            {"salad": _lrsweep_conditions()}, {"salad": 500_000}, 10,
+            {"smoke": SMOKE, "quick": quick(3, 120_000)}, milestones=(250_000, 500_000)),
         Experiment(
             "episodic-vs-reset-free", "Fig. 2", "Episodic vs non-episodic learning (static salad)",
             "Static salad-making with and without resets; heat-maps of where the agent spends its life.",
             {"salad": (salad_dyn[0], salad_dyn[1])}, {"salad": 1_000_000}, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 250_000)}, heatmaps=True),
+            {"smoke": SMOKE, "quick": quick(3, 250_000)}, heatmaps=True),
     ]
 
 
@@ -252,9 +209,9 @@ def _dynamism_sweep_waypoint() -> Experiment:
         "every ingredient picked up, farmable; +100 for the salad), whose sweep lists these levels (all but "
         "0.1 commented out). Its p = 0 and p = 0.1 arms are the configs of 'headline-waypoint''s "
         "non-episodic pair.",
-        {"salad": _with_reward(_sweep_conditions("salad", (0.0, 0.01, 0.05, 0.1, 0.5)), "waypoint",
+        {"salad": with_reward(sweep_conditions("salad", (0.0, 0.01, 0.05, 0.1, 0.5)), "waypoint",
                                "waypoint reward")},
-        {"salad": 1_000_000}, 10, {"smoke": SMOKE, "quick": _quick(3, 100_000)})
+        {"salad": 1_000_000}, 10, {"smoke": SMOKE, "quick": quick(3, 100_000)})
 
 
 WAYPOINT_TASKS = tuple(t for t in ("hunting", "scavenging", "factory")
@@ -268,13 +225,16 @@ def _dynamism_waypoint() -> Experiment:
     """Fig. 4's other grid panels under the released scripts' waypoint reward."""
     return Experiment(
         "dynamism-waypoint", "Fig. 4, released scripts' reward", "Dynamism and resets, waypoint reward",
-        "The 'dynamism' conditions of hunting and factory trained with the reward of the released scripts (+1 "
-        "for every intermediate object picked up or made, farmable; +100 on completion) instead of the paper "
-        "text's sparse reward; the released hunting script trains no sparse arm at all. Salad's is "
-        "'headline-waypoint'; scavenging has no intermediate object, so its waypoint reward is its sparse one "
-        "and its panel is 'dynamism''s.",
-        {t: _with_reward(_dynamism_conditions(t), "waypoint", "waypoint reward") for t in WAYPOINT_TASKS},
-        {t: PAPER_STEPS[t] for t in WAYPOINT_TASKS}, 10, {"smoke": SMOKE, "quick": _quick(3, 150_000)})
+        "The 'dynamism' conditions of hunting and factory trained with a waypoint reward instead of the paper "
+        "text's sparse reward: hunting's is the released script's (+1 for the first axe and the first food of a "
+        "cycle, +100 on completion); factory's pays a flat +1 for every material, axe made or picked up and +100 "
+        "per delivery, not the released factory ladder (1 / 100 / 100 / 10 000, experiment 'factory-released'). "
+        "The released hunting script trains no sparse arm at all. Salad's is 'headline-waypoint'; scavenging has "
+        "no intermediate object, so its waypoint reward is its sparse one and its panel is 'dynamism''s.",
+        {t: with_reward(dynamism_conditions(t), "waypoint",
+                        "waypoint reward" + (", flat ladder" if t == "factory" else ""),
+                        {"env_kwargs": FLAT_LADDER} if t == "factory" else {}) for t in WAYPOINT_TASKS},
+        {t: PAPER_STEPS[t] for t in WAYPOINT_TASKS}, 10, {"smoke": SMOKE, "quick": quick(3, 150_000)})
 
 
 def _hunting_gap() -> Experiment:
@@ -287,7 +247,7 @@ def _hunting_gap() -> Experiment:
         "either reward, at lr 3e-4: the rate that decides whether reset-free salad is learned at all.",
         {"hunting": (Condition("rf-lr3e-4", label, rf),
                      Condition("rf-waypoint-lr3e-4", f"{label}, waypoint reward", {**rf, "reward": "waypoint"}))},
-        {"hunting": PAPER_STEPS["hunting"]}, 10, {"smoke": SMOKE, "quick": _quick(3, 150_000)})
+        {"hunting": PAPER_STEPS["hunting"]}, 10, {"smoke": SMOKE, "quick": quick(3, 150_000)})
 
 
 def _shaping_gap() -> Experiment:
@@ -307,7 +267,7 @@ def _shaping_gap() -> Experiment:
         "the whole grid by 280 000 steps, while exploration is still mostly random. Here the released shaping "
         "script's two longer windows (full grid at 560 000 and 840 000 steps) and its learning rate, 1e-4 (with no "
         "shaping at the same rate to compare), each with the rest of Fig. 5's arm unchanged.",
-        {"salad": tuple(arms)}, {"salad": 1_250_000}, 10, {"smoke": SMOKE, "quick": _quick(3, 120_000)})
+        {"salad": tuple(arms)}, {"salad": 1_250_000}, 10, {"smoke": SMOKE, "quick": quick(3, 120_000)})
 
 
 def _task_experiments() -> list[Experiment]:
@@ -317,18 +277,18 @@ def _task_experiments() -> list[Experiment]:
         Experiment(
             "dynamism", "Fig. 4", "Dynamism and resets on every task",
             "Per task: {static, dynamic} x {episodic, non-episodic}; evaluation on the static episodic test MDP.",
-            {t: _dynamism_conditions(t) for t in PAPER_TASKS}, {t: PAPER_STEPS[t] for t in PAPER_TASKS}, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 150_000)}),
+            {t: dynamism_conditions(t) for t in PAPER_TASKS}, {t: PAPER_STEPS[t] for t in PAPER_TASKS}, 10,
+            {"smoke": SMOKE, "quick": quick(3, 150_000)}),
         _dynamism_waypoint(),
         _hunting_gap(),
         Experiment(
             "dynamism-sweep", "Fig. 6 (left, middle)", "How much dynamism",
             "Non-episodic training as the dynamic event probability grows: salad resource probability, hunting "
             "deer movement probability.",
-            {"salad": _sweep_conditions("salad", (0.0, 0.01, 0.05, 0.1, 0.5)),
-             "hunting": _sweep_conditions("hunting", (0.0, 0.1, 0.2, 0.4, 0.6))},
+            {"salad": sweep_conditions("salad", (0.0, 0.01, 0.05, 0.1, 0.5)),
+             "hunting": sweep_conditions("hunting", (0.0, 0.1, 0.2, 0.4, 0.6))},
             {"salad": 1_000_000, "hunting": 1_500_000}, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 100_000)}),
+            {"smoke": SMOKE, "quick": quick(3, 100_000)}),
         _dynamism_sweep_waypoint(),
         Experiment(
             "shaping", "Fig. 5", "Environment shaping vs reward shaping",
@@ -337,8 +297,8 @@ def _task_experiments() -> list[Experiment]:
             "one-time rewards are its sparse one: those two arms would repeat 'env-shaping-sparse' and "
             "'no-shaping' step for step and are not listed. The report films each condition's best seed with "
             "a filmstrip of its first test episode (the paper's Fig. 11-12).",
-            {t: _shaping_conditions(t) for t in PAPER_TASKS}, shaping_steps, 10,
-            {"smoke": SMOKE, "quick": _quick(3, 100_000)}, videos=True),
+            {t: shaping_conditions(t) for t in PAPER_TASKS}, shaping_steps, 10,
+            {"smoke": SMOKE, "quick": quick(3, 100_000)}, videos=True),
         _shaping_gap(),
         Experiment(
             "rnd", "Fig. 6 (right)", "Dynamism and shaping vs an exploration bonus (factory)",
@@ -349,14 +309,14 @@ def _task_experiments() -> list[Experiment]:
                                    {"reset_free": True, "dynamism": DYNAMIC_P["factory"]}),
                          Condition("env-shaping", "env shaping",
                                    {"reset_free": True, "shaping": SHAPING_SCHEDULE["factory"]}))},
-            {"factory": 1_250_000}, 10, {"smoke": SMOKE, "quick": _quick(3, 100_000)}),
+            {"factory": 1_250_000}, 10, {"smoke": SMOKE, "quick": quick(3, 100_000)}),
         Experiment(
             "walls", "Fig. 8-10", "Shaping methods in the walled salad maze",
             "Walled salad (10x10, three walls): environment vs reward shaping, episodic and non-episodic, "
             "with visitation heat-maps.",
-            {"walled-salad": _shaping_conditions("walled-salad", True, "-reset-free")
-             + _shaping_conditions("walled-salad", False, "-episodic")},
-            {"walled-salad": 1_000_000}, 3, {"smoke": SMOKE, "quick": _quick(3, 100_000)}, heatmaps=True,
+            {"walled-salad": shaping_conditions("walled-salad", True, "-reset-free")
+             + shaping_conditions("walled-salad", False, "-episodic")},
+            {"walled-salad": 1_000_000}, 3, {"smoke": SMOKE, "quick": quick(3, 100_000)}, heatmaps=True,
             panel_per_setting=True),
         Experiment(
             "measure", "Table 1", "What a random policy experiences",
@@ -372,7 +332,7 @@ def _task_experiments() -> list[Experiment]:
 
 def _experiments() -> dict[str, Experiment]:
     """Every experiment by name, in the order ``ecorl run --list`` shows them."""
-    return {e.name: e for e in (*_salad_experiments(), *_task_experiments())}
+    return {e.name: e for e in (*_salad_experiments(), *_task_experiments(), *released_experiments())}
 
 
 EXPERIMENTS: Mapping[str, Experiment] = MappingProxyType(_experiments())

@@ -23,7 +23,8 @@ def test_every_field_is_documented_and_has_a_flag():
         for f in dataclasses.fields(section):
             assert docs.get(f.name), f"{section.__name__}.{f.name} has no docstring"
             if f.name != "task":
-                flag = "--env-kwarg" if f.name == "env_kwargs" else "--" + f.name.replace("_", "-")
+                flag = "--" + f.name.replace("_", "-")
+                flag = flag.removesuffix("s") if f.name.endswith("env_kwargs") else flag  # --env-kwarg K=V
                 assert flag in help_text
     assert field_docs(DQNConfig)["lr"] in help_text
 
@@ -44,6 +45,9 @@ def test_flags_set_config_fields():
                  "--view-layers", "32", "32", "--env-kwarg", "initial_count=1", "--env-kwarg", "grid_size=10")
     assert cfg.env.reset_free and cfg.env.dynamism == 0.1 and cfg.env.shaping == "linear:1:0:280000"
     assert cfg.env.env_kwargs == {"initial_count": 1, "grid_size": 10}
+    evaluated = config_from_args(build_parser().parse_args(["train", "hunting", "--eval-env-kwarg", "deer_count=1",
+                                                            "--eval-dynamism", "0.2"]))
+    assert evaluated.eval.eval_env_kwargs == {"deer_count": 1} and evaluated.eval.eval_dynamism == 0.2
     assert cfg.run.seeds == 10 and cfg.rnd.rnd and cfg.rnd.rnd_weight == 0.5 and cfg.dqn.lr == 3e-4
     assert cfg.dqn.view_layers == (32, 32)
 

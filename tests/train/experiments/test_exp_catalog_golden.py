@@ -2,7 +2,10 @@
 
 ``catalog_golden.json`` was dumped from the code before train/ was split into layers (commit dc84084): the
 defaults of `TrainConfig`, the experiments' order, and for every experiment its description and each job's
-settings that differ from the defaults.
+settings that differ from the defaults. Regenerated once, on purpose, for issue 48: three new settings
+(``completion_terminal``, ``eval_dynamism``, ``eval_env_kwargs``, at defaults that change no job), the released
+experiments (`train.experiments.released`) and factory's shipped subgoal-mode arms naming the flat ladder
+(``reward_ladder=flat``), now that the released ladder is factory's default; every other job is unchanged.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ from train.experiments.report.figures import (
 )
 from train.experiments.report.paper import format_paper, load_paper, paper_value
 from train.experiments.report.runs import load_experiment, read_metrics
-from train.experiments.report.stats import bootstrap_ci
+from train.experiments.report.stats import COLLAPSE_SHARE, bootstrap_ci
 from train.rundir import EXPERIMENT_FILE, METRIC_COLUMNS
 
 
@@ -55,7 +55,7 @@ def test_paper_values_and_their_marks():
 
 
 def _fake_run(run_dir, seeds, steps, success, grid=(8, 8), loss=lambda i, k: 1.0, max_q=lambda i, k: 50.0,
-              columns=METRIC_COLUMNS):
+              columns=METRIC_COLUMNS, top_share=None):
     run_dir.mkdir(parents=True)
     with open(run_dir / "metrics.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
@@ -63,7 +63,9 @@ def _fake_run(run_dir, seeds, steps, success, grid=(8, 8), loss=lambda i, k: 1.0
         for i, step in enumerate(steps):
             for k in range(seeds):
                 writer.writerow({"step": step, "seed": k, "epsilon": 0.1, "loss": loss(i, k), "max_q": max_q(i, k),
-                                 "success": success(i, k), "return": 0.0, "train_reward": 0.0, "steps_per_s": 1.0})
+                                 "success": success(i, k), "return": 0.0, "train_reward": 0.0, "steps_per_s": 1.0,
+                                 **({} if top_share is None else {"top_action": 2, "top_action_share": top_share(i, k),
+                                                                  "corner_share": 0.1})})
     (run_dir / "visits").mkdir()
     for i, step in enumerate(steps):
         np.save(run_dir / "visits" / f"{step:09d}.npy", np.full((seeds, *grid), i + 1, dtype=np.int64))
@@ -85,13 +87,35 @@ def test_report_on_synthetic_runs(tmp_path):
     assert names == ["episodic-vs-reset-free_curves.png", "episodic-vs-reset-free_salad_heatmaps.png",
                      "index.html", "report.md"]
     md = (root / "report.md").read_text()
-    assert "| salad | static, episodic | 10.0% [" in md and "| 0 / 3 | — | 0 / 3 | 3 | 50000 | ≈ 12% (Fig. 2) |" in md
-    assert "| salad | static, non-episodic | 0.0% [0.0, 0.0] | 0 / 3 | — | 0 / 3 | 3 | 20000 | ≈ 0% (Fig. 2) |" in md
+    assert "| salad | static, episodic | 10.0% [" in md
+    assert "| 0 / 3 | — | 0 / 3 | — | 3 | 50000 | ≈ 12% (Fig. 2) |" in md
+    assert ("| salad | static, non-episodic | 0.0% [0.0, 0.0] | 0 / 3 | — | 0 / 3 | — | 3 | 20000 | ≈ 0% (Fig. 2) |"
+            in md)
     assert "2000 resamples, generator seed 0" in md and "seeds diverged" in md
     assert "1 run(s) not finished yet" in md
     steps_read, values = read_metrics(root / exp.name / "salad" / "static-episodic" / "metrics.csv", "success")
     assert steps_read.tolist() == steps and values.shape == (10, 3)
     assert "<video" not in (root / "index.html").read_text()
+
+
+def test_report_counts_collapsed_seeds_and_draws_their_top_action_share(tmp_path):
+    exp = get_experiment("episodic-vs-reset-free")
+    root = tmp_path / "results"
+    (root / exp.name).mkdir(parents=True)
+    (root / exp.name / EXPERIMENT_FILE).write_text(json.dumps({**exp.describe(), "budget": "quick"}))
+    steps = [5_000, 10_000, 15_000]
+    # seed 1 collapses at the last evaluation only; seed 2 sits at the threshold, which is not above it
+    share = lambda i, k: [0.3, 0.9 if i == 2 else 0.4, COLLAPSE_SHARE][k]  # noqa: E731
+    _fake_run(root / exp.name / "salad" / "static-reset-free", 3, steps, lambda i, k: 0.0, top_share=share)
+    _fake_run(root / exp.name / "salad" / "static-episodic", 3, steps, lambda i, k: 0.0)  # written before it
+    paths = make_report(root, videos=False)
+    assert "episodic-vs-reset-free_collapse.png" in {p.name for p in paths}
+    md = (root / "report.md").read_text()
+    assert "| salad | static, non-episodic | 0.0% [0.0, 0.0] | 0 / 3 | — | 0 / 3 | 1 / 3 (seed 1) | 3 |" in md
+    assert "| salad | static, episodic | 0.0% [0.0, 0.0] | 0 / 3 | — | 0 / 3 | — | 3 |" in md
+    assert "Seeds collapsed: a seed collapsed when" in md and "![greedy top-action share]" in md
+    run = next(r for r in load_experiment(root / exp.name).runs if r.condition == "static-reset-free")
+    assert run.top_shares(1).tolist() == [0.3, 0.4, COLLAPSE_SHARE]
 
 
 def test_walls_curves_get_a_panel_per_setting_and_other_experiments_one_per_task(tmp_path):
@@ -270,3 +294,11 @@ def test_keeping_only_the_heatmap_snapshots_draws_the_same_heatmaps(tmp_path, ev
     assert len(before) == min(evaluations, HEATMAP_POINTS) == len(kept)
     assert [s for s, _ in after] == [s for s, _ in before]
     assert all(np.array_equal(a, b) for (_, a), (_, b) in zip(after, before))
+
+
+def test_a_task_that_pays_more_per_step_scales_the_divergence_bounds():
+    from train.experiments.report.stats import blown
+
+    loss, max_q = np.array([[5e3, 10.0]]), np.array([[1e4, 5e5]])
+    assert blown(loss, max_q, 0.99).tolist() == [[True, True]]  # 200 / 0.01 = 20 000; loss above 1 000
+    assert blown(loss, max_q, 0.99, reward_bound=10_100).tolist() == [[False, False]]  # 1 010 000; 2.55e6

@@ -63,3 +63,24 @@ def test_corner_shares_count_the_four_cells_inside_the_outer_wall(tmp_path):
     assert evenness(np.full((1, 3, 3), 7), np.ones((3, 3), bool)) == pytest.approx([1.0])  # all cells alike
     assert lines[2] == f"| {(tmp_path / 'run').as_posix()} | 100 | 25.0% [0.0, 50.0] | 50.0% | 35.1% [0.0, 70.3] |"
     assert main([str(tmp_path)]) == 1  # no visits/ there
+
+
+def test_the_collapse_tool_reads_exported_policies_and_the_late_corner_visits(tmp_path):
+    from train.config import TrainConfig
+    from train.experiments.report.collapse import action_name, collapse_table, main
+    from train.policy import export_run_policies
+    from train.trainer import Trainer
+
+    cfg = TrainConfig().replace(task="hunting", seeds=2, steps=1_000, epoch_steps=250, updates_per_epoch=10,
+                                eval_every=500, eval_rollouts=3, eval_horizon=10, buffer_size=1_000,
+                                reset_free=True, progress=False)
+    trainer = Trainer(cfg, tmp_path / "run")
+    trainer.run()
+    trainer.close()
+    export_run_policies(tmp_path / "run")
+    table = collapse_table([tmp_path / "run"]).splitlines()
+    assert len(table) == 3 and table[2].startswith(f"| {(tmp_path / 'run').as_posix()} | best (seed ")
+    assert "median (seed " in table[2] and table[2].endswith(" | 700–1,200 |")  # warm-up 200, then 500-step evals
+    assert table[2].count("collapsed") == 2  # each policy is judged, whichever way
+    assert action_name(7, 2) == "north" and action_name(27, 9 + 3 + 2) == "forward +, strafe +, turn -"
+    assert main([str(tmp_path / "nothing")]) == 1

@@ -24,13 +24,13 @@ def report(smoke_root, cli):
     return smoke_root, proc.stdout
 
 
-def test_every_run_directory_is_complete(smoke_root, smoke_tasks):
+def test_every_run_directory_is_complete(smoke_root, smoke_tasks, smoke_conditions):
     for name, tasks in smoke_tasks.items():
         exp = EXPERIMENTS[name]
         info = json.loads((smoke_root / name / EXPERIMENT_FILE).read_text())
         assert info["name"] == name and info["budget"] == "smoke"
         for task in exp.select_tasks(tasks):
-            for cond in exp.conditions[task]:
+            for cond in exp.select_conditions(task, smoke_conditions.get(name)):
                 run = smoke_root / name / task / cond.name
                 done = json.loads((run / DONE_FILE).read_text())
                 if exp.is_measurement:

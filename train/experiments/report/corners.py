@@ -18,22 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ecology import count_entropy
+from ecology import corner_cells, corner_share, count_entropy
 from train.experiments.report.figures import heatmap_snapshot_files
 from train.experiments.report.stats import summarize
 from train.rundir import read_visits
 
 
-def corner_cells(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
-    """(rows, cols) of the four corner cells inside a grid's one-cell outer wall."""
-    return np.array([1, 1, height - 2, height - 2]), np.array([1, width - 2, 1, width - 2])
-
-
 def corner_shares(visits: np.ndarray) -> np.ndarray:
     """(S,) each seed's share of its visits on the four inner corner cells; ``visits`` is (S, H, W) counts."""
-    rows, cols = corner_cells(*visits.shape[1:])
-    totals = visits.sum((1, 2)).astype(np.float64)
-    return visits[:, rows, cols].sum(1) / np.maximum(totals, 1.0)
+    return corner_share(visits, wall=1)
 
 
 def evenness(visits: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -48,7 +41,7 @@ def corner_rows(run_dir: Path) -> list[str]:
     if not snapshots:
         raise ValueError(f"{run_dir} has no visitation snapshots in {run_dir / 'visits'}")
     reached = snapshots[-1][1].sum(0) > 0
-    even = 100.0 * reached[corner_cells(*reached.shape)].sum() / max(int(reached.sum()), 1)
+    even = 100.0 * reached[corner_cells(reached.shape)].sum() / max(int(reached.sum()), 1)
     rows = []
     for step, visits in snapshots:
         share = summarize(corner_shares(visits), "success")[0]  # a fraction, shown like success: 17.3% [14.8, 20.0]

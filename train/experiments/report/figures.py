@@ -18,7 +18,7 @@ import numpy as np
 
 from train.experiments.report.paper import paper_value
 from train.experiments.report.runs import ExperimentResults, Run
-from train.experiments.report.stats import CI_LEVEL, bootstrap_ci
+from train.experiments.report.stats import CI_LEVEL, COLLAPSE_SHARE, bootstrap_ci
 from train.fileio import atomic_file
 from train.rundir import read_visits
 
@@ -155,6 +155,45 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
              f"CI over {'/'.join(map(str, seeds))} seeds; thin lines: single seeds)")
     fig.suptitle(textwrap.fill(title, int(width * 11)), fontsize=11)
     _save_figure(fig, out, dpi=110)
+    return out
+
+
+def plot_collapse(exp: ExperimentResults, out: Path) -> Path | None:
+    """One panel per curve panel: each condition's greedy top-action share over training (mean and 95% CI over
+    seeds, each seed thin), with the collapse threshold dashed; None when no run records the share.
+    """
+    panels = [(title, [r for r in runs if not np.isnan(r.top_share).all() and r.top_share.shape == r.values.shape])
+              for _, title, runs in curve_panels(exp)]
+    panels = [(title, runs) for title, runs in panels if runs]
+    if not panels:
+        return None
+    plt = _pyplot()
+    ncols = min(len(panels), 5)
+    nrows = math.ceil(len(panels) / ncols)
+    width = max(4.2 * ncols, 7.5)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(width, 3.0 * nrows + 1.0), squeeze=False, layout="constrained")
+    color_of = report_colors(exp)
+    for ax, (title, runs) in zip(axes.flat, panels):
+        for run in runs:
+            color = color_of[run.condition]
+            mean, low, high = bootstrap_ci(np.nan_to_num(run.top_share, nan=0.0))
+            ax.plot(run.steps, run.top_share, color=color, lw=0.5, alpha=0.35)
+            ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
+            ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
+        ax.axhline(COLLAPSE_SHARE, color="gray", ls="--", lw=1.0)
+        ax.set_title(title)
+        ax.set_xlabel("environment steps")
+        ax.set_ylabel("greedy top-action share")
+        ax.set_ylim(0.0, 1.02)
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 3))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, frameon=False, loc="upper left")
+    for ax in list(axes.flat)[len(panels):]:
+        ax.set_visible(False)
+    title = (f"{exp.info.get('paper', '')}: how often the greedy policy picks its most frequent action on the "
+             f"validation rollouts (dashed: {COLLAPSE_SHARE:.0%}, above it a seed counts as collapsed)")
+    fig.suptitle(textwrap.fill(title, int(width * 11)), fontsize=10)
+    _save_figure(fig, out, dpi=100)
     return out
 
 

@@ -24,7 +24,13 @@ from pathlib import Path
 from typing import Any
 
 from train.experiments.catalog import EXPERIMENTS
-from train.experiments.report.figures import plot_curves, plot_heatmaps, plot_seed_curves, reference_label
+from train.experiments.report.figures import (
+    plot_collapse,
+    plot_curves,
+    plot_heatmaps,
+    plot_seed_curves,
+    reference_label,
+)
 from train.experiments.report.lead import Lead, build_leads, lead_html, lead_markdown, lead_names, source_name
 from train.experiments.report.paper import load_paper
 from train.experiments.report.runs import (
@@ -37,7 +43,7 @@ from train.experiments.report.runs import (
     load_reference,
     load_single_run,
 )
-from train.experiments.report.stats import BOOTSTRAP_NOTE, DIVERGED_RULE
+from train.experiments.report.stats import BOOTSTRAP_NOTE, COLLAPSED_RULE, DIVERGED_RULE
 from train.experiments.report.tables import (
     FINAL_COLUMNS,
     MEASUREMENT_COLUMNS,
@@ -65,6 +71,8 @@ class Section:
     milestones: list[dict[str, Any]] = field(default_factory=list)
     reference: ExperimentResults | None = None
     """Shipped paper-budget runs drawn dashed under this experiment's curves."""
+    collapse: Path | None = None
+    """The greedy top-action share over training (`plot_collapse`), where the runs record it."""
 
 
 def load_all(source: Path) -> list[ExperimentResults]:
@@ -103,13 +111,14 @@ def build_sections(source: Path, out: Path, videos: bool | None = None) -> list[
         reference = None if single else load_reference(exp)
         curves = (plot_seed_curves(exp, figures / f"{stem}_curves.png") if single
                   else plot_curves(exp, paper, figures / f"{stem}_curves.png", reference))
+        collapse = None if single else plot_collapse(exp, figures / f"{stem}_collapse.png")
         heatmaps = []
         if exp.info.get("heatmaps"):
             heatmaps = [p for t in exp.tasks if (p := plot_heatmaps(exp, t, figures / f"{stem}_{t}_heatmaps.png"))]
         tasks_run = set(exp.tasks)
         claims = [c for c in paper.get("claims", []) if c.get("task") in (None, *tasks_run)]
         sections.append(Section(exp, curves, heatmaps, final_rows(exp, paper), measurement_rows(exp, paper),
-                                claims, paper.get("sources", []), milestone_rows(exp), reference))
+                                claims, paper.get("sources", []), milestone_rows(exp), reference, collapse))
     return sections
 
 
@@ -155,7 +164,8 @@ def write_markdown(source: Path, out: Path, sections: Sequence[Section], leads: 
     lines = [f"# ecorl report: `{_shown(source)}`", "",
              "Success = fraction of the 100 fixed validation layouts of the test MDP solved (food collector: mean "
              "return over validation episodes), at the last evaluation; mean over seeds with a 95% confidence "
-             f"interval ({BOOTSTRAP_NOTE}). Seeds diverged: {DIVERGED_RULE}. Paper column: **≈** a value read "
+             f"interval ({BOOTSTRAP_NOTE}). Seeds diverged: {DIVERGED_RULE}. Seeds collapsed: {COLLAPSED_RULE}. "
+             "Paper column: **≈** a value read "
              "from a figure or quoted in the paper's text (approximate), **=** a value from a table (exact), — "
              "the paper reports no number.", ""]
     lines += lead_markdown(list(leads), out, _md_table)
@@ -177,6 +187,8 @@ def _section_markdown(s: Section, out: Path) -> list[str]:
         lines += [f"Dashed: the mean of the {reference_label(s.reference).replace(' (dashed)', '')} shipped in "
                   f"`{source_name(s.reference.path)}` (re-draw it with `ecorl report "
                   f"{source_name(s.reference.path)}`).", ""]
+    if s.collapse:
+        lines += [f"![greedy top-action share]({s.collapse.relative_to(out).as_posix()})", ""]
     for h in s.heatmaps:
         lines += [f"![visitation heat-maps]({h.relative_to(out).as_posix()})", ""]
     if s.finals:
@@ -220,7 +232,8 @@ def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Seq
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>ecorl report</title><style>{STYLE}"
              "</style></head><body>", f"<h1>ecorl report</h1><p><code>{html.escape(_shown(source))}</code> — "
              "also as <a href='report.md'>report.md</a>. Intervals: 95%, " + html.escape(BOOTSTRAP_NOTE) + ". "
-             "Seeds diverged: " + html.escape(DIVERGED_RULE) + ". Paper column: ≈ approximate (figure or text), "
+             "Seeds diverged: " + html.escape(DIVERGED_RULE) + ". Seeds collapsed: " + html.escape(COLLAPSED_RULE)
+             + ". Paper column: ≈ approximate (figure or text), "
              "= exact (table).</p>", lead_html(list(leads), out, _html_table)]
     if leads:
         parts.append(f"<p class='claim'><b>Below: {html.escape(LIVE_NOTE)}</b></p>")
@@ -230,7 +243,7 @@ def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Seq
         parts.append(f"<h2>{html.escape(s.exp.name)} ({html.escape(info.get('paper', ''))}): "
                      f"{html.escape(info.get('title', ''))}</h2><p>{html.escape(info.get('description', ''))}</p>"
                      f"<p>{html.escape(_budget_line(s.exp).replace('`', ''))}</p>")
-        for img in ([s.curves] if s.curves else []) + s.heatmaps:
+        for img in [f for f in (s.curves, s.collapse) if f] + s.heatmaps:
             parts.append(f"<p><img src='{html.escape(img.relative_to(out).as_posix())}' alt='{img.stem}'></p>")
         for rows, columns in ((s.finals, FINAL_COLUMNS), (s.milestones, milestone_columns(s.exp)),
                               (s.measures, MEASUREMENT_COLUMNS)):
@@ -318,5 +331,5 @@ def make_report(root: str | Path, videos: bool | None = None, out: str | Path | 
     md = write_markdown(source, target, sections, leads)
     page = write_html(source, target, sections, web_videos(source, target, sections), leads)
     written = [lead.figure for lead in leads]
-    written += [p for s in sections for p in ([s.curves] if s.curves else []) + s.heatmaps]
+    written += [p for s in sections for p in [f for f in (s.curves, s.collapse) if f] + s.heatmaps]
     return [*written, md, page]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +14,7 @@ import numpy as np
 from train.config import TrainConfig
 from train.experiments.catalog import BUDGETS, EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
-from train.experiments.report.stats import blown, diverged
+from train.experiments.report.stats import REWARD_BOUND, blown, diverged
 from train.rundir import EXPERIMENT_FILE
 from train.safeio import load_json, read_text
 
@@ -40,6 +40,14 @@ class Run:
     """(S,) the seeds' numbers."""
     blown: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=bool))
     """(E, S) where a seed's values blew up at an evaluation (`stats.blown`; all False when unknown)."""
+    top_share: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    """(E, S) the greedy policy's top-action share at each evaluation (NaN where the file predates it)."""
+
+    def top_shares(self, evaluation: int = -1) -> np.ndarray:
+        """(S,) each seed's top-action share at evaluation ``evaluation`` (all NaN when unknown)."""
+        if self.top_share.shape != self.values.shape:
+            return np.full(self.seeds, np.nan)
+        return self.top_share[evaluation]
 
     def diverged(self, evaluation: int = -1) -> np.ndarray:
         """(S,) seeds that diverged at or before evaluation number ``evaluation`` (`stats.diverged`)."""
@@ -130,14 +138,36 @@ def run_gamma(run_dir: Path) -> float:
         return TrainConfig().dqn.gamma
 
 
+REWARD_PARAMETERS = ("reward_ladder", "goal")
+"""The task parameters that change what a step can pay (factory's); the only ones `run_reward_bound` builds an
+environment with, so a results tree cannot make the report build a huge one."""
+
+
+def run_reward_bound(run_dir: Path) -> float:
+    """The largest per-step |reward| of the run's training environment (`train.tasks.EnvInfo.reward_bound`, from
+    its config.json; `stats.REWARD_BOUND` where unreadable).
+    """
+    from train.tasks import get_task, probe
+
+    try:
+        env = TrainConfig.from_dict(load_json(run_dir / "config.json")).env
+        if not set(env.env_kwargs) & set(REWARD_PARAMETERS) and env.task != "factory":
+            return REWARD_BOUND  # no other task's rewards depend on its parameters
+        kept = {k: v for k, v in env.env_kwargs.items() if k in REWARD_PARAMETERS}
+        return probe(get_task(env.task), replace(env, env_kwargs=kept)).reward_bound
+    except (OSError, ValueError, KeyError, TypeError):
+        return REWARD_BOUND
+
+
 def read_run(run_dir: Path, task: str, condition: str, label: str) -> Run | None:
     """The `Run` of one condition's run directory (None when it has no complete evaluation yet)."""
     metric = task_metric(task)
     steps, seeds, (values, loss, max_q) = read_columns(run_dir / "metrics.csv", (metric, "loss", "max_q"))
     if not len(steps):
         return None
+    _, _, (top_share,) = read_columns(run_dir / "metrics.csv", ("top_action_share",), missing=np.nan)
     return Run(task, condition, label, run_dir, metric, steps, values, (run_dir / DONE_FILE).exists(), seeds,
-               blown(loss, max_q, run_gamma(run_dir)))
+               blown(loss, max_q, run_gamma(run_dir), run_reward_bound(run_dir)), top_share)
 
 
 def find_experiment_dirs(root: Path) -> list[Path]:

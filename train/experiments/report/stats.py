@@ -32,25 +32,55 @@ REWARD_BOUND = 200.0
 DIVERGED_RULE = (f"a seed diverged when, at any evaluation up to the one shown, its mean TD loss since the "
                  f"previous evaluation exceeded {DIVERGED_LOSS:g} or its largest |Q| on the validation "
                  f"rollouts exceeded {REWARD_BOUND:g} / (1 - gamma) ({REWARD_BOUND / 0.01:,.0f} at gamma 0.99) "
-                 f"or was not finite")
+                 f"or was not finite; where a task pays more per step (the released factory ladder's 10 000), "
+                 f"{REWARD_BOUND:g} is its largest reward plus 100 and the loss bound grows with its square")
 """The divergence rule in words (the report and docs/fidelity.md state it)."""
 
 
-def q_bound(gamma: float) -> float:
-    """The largest |Q| a value estimate can have at discount ``gamma`` (see `REWARD_BOUND`)."""
-    return math.inf if gamma >= 1.0 else REWARD_BOUND / (1.0 - gamma)
+COLLAPSE_SHARE = 0.6
+"""A seed 'collapsed' when its greedy policy takes one action at more than this share of its validation steps
+(an even policy over 7 actions takes each at 1/7; a policy that solves the grid tasks moves in several
+directions and picks up and places)."""
+COLLAPSED_RULE = (f"a seed collapsed when, at the evaluation shown, its greedy policy chose one action at more "
+                  f"than {COLLAPSE_SHARE:.0%} of its validation steps ('—': the run predates this measurement)")
+"""The collapse rule in words (the report and docs/fidelity.md state it)."""
 
 
-def blown(loss: np.ndarray, max_q: np.ndarray, gamma: float) -> np.ndarray:
+def collapsed(top_share: np.ndarray) -> np.ndarray:
+    """Where the greedy policy collapsed onto one action, elementwise over top-action shares (NaN: unknown, False)."""
+    with np.errstate(invalid="ignore"):
+        return np.asarray(top_share, dtype=np.float64) > COLLAPSE_SHARE
+
+
+def format_collapsed(top_share: np.ndarray, seeds: np.ndarray) -> str:
+    """'c / S' seeds collapsed (`collapsed`), with their numbers when there are any; '—' when no seed's share is
+    known (runs written before the collapse columns).
+    """
+    top_share = np.asarray(top_share, dtype=np.float64)
+    if np.isnan(top_share).all():
+        return "—"
+    return format_diverged(collapsed(top_share), seeds)
+
+
+def q_bound(gamma: float, reward_bound: float = REWARD_BOUND) -> float:
+    """The largest |Q| a value estimate can have at discount ``gamma`` when no step pays more than
+    ``reward_bound`` (see `REWARD_BOUND`).
+    """
+    return math.inf if gamma >= 1.0 else reward_bound / (1.0 - gamma)
+
+
+def blown(loss: np.ndarray, max_q: np.ndarray, gamma: float, reward_bound: float = REWARD_BOUND) -> np.ndarray:
     """Where a seed's values blew up at an evaluation, elementwise (the rule of `DIVERGED_RULE`).
 
     ``loss`` and ``max_q`` are per evaluation and seed. A NaN loss (no gradient step since the previous
     evaluation) says nothing; a NaN ``max_q`` is a non-finite Q-value, a blow-up. Files written before
-    ``max_q`` existed give it as 0 (no evidence), so their rule is the loss alone.
+    ``max_q`` existed give it as 0 (no evidence), so their rule is the loss alone. ``reward_bound``: the task's
+    largest per-step |reward| (the run's `train.tasks.EnvInfo.reward_bound`), which scales both bounds.
     """
     loss, max_q = np.asarray(loss, dtype=np.float64), np.asarray(max_q, dtype=np.float64)
+    scale = max(reward_bound, REWARD_BOUND) / REWARD_BOUND
     with np.errstate(invalid="ignore"):
-        return (loss > DIVERGED_LOSS) | ~(max_q <= q_bound(gamma))
+        return (loss > DIVERGED_LOSS * scale**2) | ~(max_q <= q_bound(gamma, max(reward_bound, REWARD_BOUND)))
 
 
 def diverged(blown_so_far: np.ndarray) -> np.ndarray:

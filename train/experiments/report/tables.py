@@ -8,7 +8,14 @@ import numpy as np
 
 from train.experiments.report.paper import format_paper, paper_value
 from train.experiments.report.runs import ExperimentResults
-from train.experiments.report.stats import LEARNED, format_diverged, learned_level, metric_scale, summarize
+from train.experiments.report.stats import (
+    LEARNED,
+    format_collapsed,
+    format_diverged,
+    learned_level,
+    metric_scale,
+    summarize,
+)
 from train.experiments.table1 import format_value
 
 MILESTONE_TOLERANCE = 5_000
@@ -17,7 +24,8 @@ MILESTONE_TOLERANCE = 5_000
 
 FINAL_COLUMNS = (("task", "task"), ("condition", "condition"), ("ours", "ours: final mean [95% CI]"),
                  ("learned", f"seeds learned (> {LEARNED:.0%})"),
-                 ("level", "learned seeds' success"), ("diverged", "seeds diverged"), ("seeds", "seeds"),
+                 ("level", "learned seeds' success"), ("diverged", "seeds diverged"),
+                 ("collapsed", "seeds collapsed"), ("seeds", "seeds"),
                  ("step", "at step"),
                  ("paper", "paper"))
 
@@ -37,6 +45,7 @@ def final_rows(exp: ExperimentResults, paper: dict) -> list[dict[str, Any]]:
         rows.append({"task": run.task, "condition": run.label, "metric": run.metric, "ours": ours,
                      "learned": learned, "level": learned_level(run.values[-1], run.metric),
                      "diverged": format_diverged(run.diverged(), run.seed_ids),
+                     "collapsed": format_collapsed(run.top_shares(), run.seed_ids),
                      "seeds": run.seeds, "step": int(run.steps[-1]), "done": run.done,
                      "paper": format_paper(paper_value(paper, run.task, run.condition), scale, unit)})
     return rows
@@ -63,7 +72,9 @@ def milestone_rows(exp: ExperimentResults) -> list[dict[str, Any]]:
                 ours, learned = summarize(run.values[at], run.metric)
                 level = learned_level(run.values[at], run.metric)
                 learned += "" if level == "—" else f" at {level}"
-                row[f"at{m}"] = f"{ours}; learned {learned}; diverged {int(run.diverged(at).sum())}"
+                collapse = format_collapsed(run.top_shares(at), run.seed_ids).split(" (")[0]
+                row[f"at{m}"] = (f"{ours}; learned {learned}; diverged {int(run.diverged(at).sum())}"
+                                 + ("" if collapse == "—" else f"; collapsed {collapse.split(' / ')[0]}"))
             else:
                 row[f"at{m}"] = "—"
         rows.append(row)
@@ -72,7 +83,7 @@ def milestone_rows(exp: ExperimentResults) -> list[dict[str, Any]]:
 
 def milestone_columns(exp: ExperimentResults) -> tuple[tuple[str, str], ...]:
     """The (key, header) columns of `milestone_rows`."""
-    heads = [(f"at{m}", f"at {m:,} steps: mean [95% CI]; seeds > {LEARNED:.0%}; seeds diverged")
+    heads = [(f"at{m}", f"at {m:,} steps: mean [95% CI]; seeds > {LEARNED:.0%}; seeds diverged (; collapsed)")
              for m in _milestones(exp)]
     return (("task", "task"), ("condition", "condition"), *heads)
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ecology import REWARD_MODES, VALIDATION_SEED_BASE, parse_schedule
+from train.config.checks import check_choices, check_int, check_kwargs, check_layers, check_number
 
 RUNTIME = {"runtime": True}
 """Field metadata marking settings that may change when a run is resumed (they do not alter its results)."""
@@ -27,45 +28,10 @@ CONFIG_OWNED_ENV_KWARGS = {"dynamism": "use --dynamism", "shaping": "use --shapi
                            "reset_free": "use --reset-free or --episodic", "reward": "use --reward",
                            "horizon": "use --horizon", "render_mode": "training renders nothing; film with ecorl video"}
 """Environment arguments the config sets itself: env_kwargs may not name them (how to set each instead)."""
-
-
-def check_number(name: str, value: Any, low: float | None = None, high: float | None = None,
-                 low_open: bool = False) -> None:
-    """Raise ValueError unless ``value`` is a finite number in the range (``low_open``: low excluded)."""
-    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
-    ok = ok and (low is None or (value > low if low_open else value >= low)) and (high is None or value <= high)
-    if not ok:
-        lo = "" if low is None else (f"> {low:g}" if low_open else f">= {low:g}")
-        span = f"in {'(' if low_open else '['}{low:g}, {high:g}]" if low is not None and high is not None else lo
-        raise ValueError(f"{name} must be a finite number {span}, got {value!r}")
-
-
-MAX_INT = 2**53
-"""Largest integer setting (beyond it no count fits the engine's 64-bit counters with room to grow)."""
-
-
-def check_int(name: str, value: Any, low: int = 1) -> None:
-    """Raise ValueError unless ``value`` is an integer in [``low``, `MAX_INT`]."""
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    if value > MAX_INT:
-        raise ValueError(f"{name} must be at most {MAX_INT}, got {value!r}")
-
-
-def check_layers(name: str, value: Any, allow_empty: bool = False) -> None:
-    """Raise ValueError unless ``value`` is a (non-empty) tuple of positive integer widths."""
-    if not isinstance(value, tuple) or (not value and not allow_empty) or any(
-            isinstance(w, bool) or not isinstance(w, int) or w < 1 for w in value):
-        need = "one or more" if not allow_empty else "zero or more"
-        raise ValueError(f"{name} must be {need} layer widths >= 1, got {value!r}")
-
-
-def check_choices(section: Any) -> None:
-    """Raise ValueError for a field whose value is not one of its declared ``choices``."""
-    for f in dataclasses.fields(section):
-        choices = f.metadata.get("choices")
-        if choices and getattr(section, f.name) not in choices:
-            raise ValueError(f"{f.name} must be one of {', '.join(choices)}, got {getattr(section, f.name)!r}")
+EVAL_OWNED_ENV_KWARGS = {"dynamism": "use --eval-dynamism", "horizon": "use --eval-horizon",
+                         "shaping": "the test MDP is unshaped", "reset_free": "the test MDP is episodic",
+                         "reward": "the test MDP's reward is sparse", "render_mode": "evaluation renders nothing"}
+"""Test-MDP arguments the evaluation protocol sets itself: eval_env_kwargs may not name them."""
 
 
 @dataclass(frozen=True)
@@ -99,12 +65,7 @@ class EnvConfig:
         if self.reward not in REWARD_MODES:
             raise ValueError(f"unknown reward mode {self.reward!r}; choose one of {', '.join(REWARD_MODES)}")
         check_int("horizon", self.horizon)
-        if not isinstance(self.env_kwargs, dict) or not all(isinstance(k, str) and k for k in self.env_kwargs):
-            raise ValueError(f"env_kwargs must map parameter names to values, got {self.env_kwargs!r}")
-        owned = sorted(set(self.env_kwargs) & set(CONFIG_OWNED_ENV_KWARGS))
-        if owned:
-            key = owned[0]
-            raise ValueError(f"env_kwargs may not set {key!r}: the config owns it ({CONFIG_OWNED_ENV_KWARGS[key]})")
+        check_kwargs("env_kwargs", self.env_kwargs, CONFIG_OWNED_ENV_KWARGS)
 
     @property
     def env_make_kwargs(self) -> dict[str, Any]:
@@ -160,6 +121,9 @@ class DQNConfig:
     timeouts_terminal: bool = False
     """Store an episode cut by the time limit as terminal, so its last transition does not bootstrap (the
     original code's episodic rule); off: only a task's own end is terminal."""
+    completion_terminal: bool = False
+    """Reset-free training too stores a completed task as a terminal transition, so it does not bootstrap
+    past it, while the world goes on (the released factory script's end_on_task_completion)."""
 
     def __post_init__(self) -> None:
         check_number("lr", self.lr, 0.0, low_open=True)
@@ -218,13 +182,21 @@ class EvalConfig:
     """Validation rollouts per seed (default: the task's 100 validation layouts; food collector: 10 episodes)."""
     eval_horizon: int | None = None
     """Length of each validation rollout (default: the task's test horizon)."""
+    eval_dynamism: float = 0.0
+    """Dynamism of the test MDP the validation rollouts play (0, static: the paper's protocol; the released
+    hunting scripts validated with deer moving at 0.2, or 0.1 for Fig. 5)."""
+    eval_env_kwargs: dict[str, Any] = field(default_factory=dict)
+    """Task parameters of the test MDP that differ from the training environment's, e.g. deer_count=1 (CLI:
+    KEY=VALUE, the value read as JSON)."""
 
     def __post_init__(self) -> None:
         check_int("eval_every", self.eval_every)
         check_number("eval_epsilon", self.eval_epsilon, 0.0, 1.0)
+        check_number("eval_dynamism", self.eval_dynamism, 0.0, 1.0)
         for name in ("eval_rollouts", "eval_horizon"):
             if getattr(self, name) is not None:
                 check_int(name, getattr(self, name))
+        check_kwargs("eval_env_kwargs", self.eval_env_kwargs, EVAL_OWNED_ENV_KWARGS)
 
 
 @dataclass(frozen=True)

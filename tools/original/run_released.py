@@ -1,0 +1,239 @@
+r"""Train one seed of one sweep point of a released ecologicalrl script, with the released code's own trainer.
+
+The script (e.g. ``experiments/continual/dynamic_static/deer/tool_dqn.py``) is executed as its authors ran it,
+as ``__main__``, except that its calls to ``run_experiment`` (which launched EC2 jobs) are collected instead of
+launched. The sweep point chosen with ``--set`` is then run in this process the way rlkit's local launcher runs
+it (logger set up in ``--out``, seeds set), with the script's own ``experiment`` function: its environments,
+network, replay buffer, double-DQN trainer, lifetime loop and validation, none of it edited (see ``shims.py``
+for the import-time adjustments and ``README.md`` for what differs from a launch in 2019).
+
+Beside rlkit's own files (``progress.csv``, ``validation_stats.csv``, ``visit_<epoch>.npy``, ``variant.json``) the
+run writes ``metrics.csv``, one row per validation, with what ecorl's ``metrics.csv`` holds, measured the same way:
+the share of validation envs solved, the largest |Q| over the validation rollouts' forward passes (every action),
+the greedy action's shares over those rollouts, and the training reward since the previous validation. Nothing
+it measures feeds back into training.
+
+    python tools/original/run_released.py --checkout ../ecologicalrl --script hunting-fig4 \
+        --set deer_move_prob=0.2 make_rtype=waypoint time_horizon=0 --seed 0 --out runs/original/hunting/s0
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import csv
+import json
+import math
+import random
+import runpy
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import shims  # noqa: E402
+
+SCRIPTS = {
+    "hunting-fig4": "experiments/continual/dynamic_static/deer/tool_dqn.py",
+    "factory-fig4": "experiments/continual/dynamic_static/factory/dqn.py",
+}
+"""Named released scripts; any other script path inside the checkout also works."""
+NUM_ACTIONS = 7
+METRIC_FIELDS = ("epoch", "step", "success", "made", "made_axe", "max_q", "top_action", "top_action_share",
+                 *(f"action_{a}" for a in range(NUM_ACTIONS)), "y_pred_max", "qf_loss", "epsilon",
+                 "train_reward", "train_solves", "seconds")
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--checkout", type=Path, required=True, help="a checkout of jcoreyes/ecologicalrl")
+    parser.add_argument("--script", required=True,
+                        help=f"a released script: one of {', '.join(SCRIPTS)}, or a path inside the checkout")
+    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                        help="env_kwargs values that pick one point of the script's sweep (Python literals; "
+                             "a bare word is a string)")
+    parser.add_argument("--seed", type=int, required=True, help="seeds random, numpy and torch")
+    parser.add_argument("--out", type=Path, required=True, help="the run's folder (must not exist or be empty)")
+    parser.add_argument("--epochs", type=int, default=None,
+                        help="stop after this many epochs (default: the script's num_epochs)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1, one core per seed)")
+    return parser.parse_args(argv)
+
+
+def collect_sweep(script: Path) -> list[tuple]:
+    """Run ``script`` as __main__ with rlkit's ``run_experiment`` collecting (experiment, variant) instead."""
+    import rlkit.launchers.launcher_util as launcher
+
+    calls: list[tuple] = []
+    launcher.run_experiment = lambda function, variant=None, **kwargs: calls.append((function, variant, kwargs))
+    runpy.run_path(str(script), run_name="__main__")
+    return calls
+
+
+def pick(calls: list[tuple], settings: dict) -> tuple:
+    """The one sweep point whose env_kwargs match ``settings`` (the script launches each point n_seeds times)."""
+    points = {}
+    for function, variant, kwargs in calls:
+        if all(variant["env_kwargs"].get(k, object()) == v for k, v in settings.items()):
+            points[json.dumps(variant, sort_keys=True, default=str)] = (function, variant, kwargs)
+    if len(points) != 1:
+        keys = sorted({k for _, v, _ in calls for k, val in v["env_kwargs"].items()
+                       if len({json.dumps(c[1]["env_kwargs"].get(k), default=str) for c in calls}) > 1})
+        raise SystemExit(f"--set matches {len(points)} sweep points, not one; the script sweeps {keys}")
+    return next(iter(points.values()))
+
+
+def parse_settings(pairs: list[str]) -> dict:
+    """``KEY=VALUE`` strings as a dict, values read as Python literals."""
+    settings = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep:
+            raise SystemExit(f"--set {pair!r}: write KEY=VALUE")
+        try:
+            settings[key] = ast.literal_eval(value)
+        except (ValueError, SyntaxError):  # a bare word: a string
+            settings[key] = value
+    return settings
+
+
+class Recorder:
+    """Measures validation and training without touching either, and writes ``metrics.csv``."""
+
+    def __init__(self, out: Path) -> None:
+        self.path = out / "metrics.csv"
+        self.start = time.time()
+        self.train_reward = 0.0
+        self.train_solves = 0
+        self.steps = 0
+        self.collections = 0  # calls of add_paths: the warm-up, then one per epoch
+        with self.path.open("w", newline="") as f:
+            csv.writer(f).writerow(METRIC_FIELDS)
+
+    def wrap_replay(self, buffer_class) -> None:
+        """Count the reward, solves and steps of every path the trainer stores (the training data only)."""
+        original = buffer_class.add_paths
+        recorder = self
+
+        def add_paths(self, paths):
+            recorder.collections += 1
+            for path in paths:
+                recorder.train_reward += float(path["rewards"].sum())
+                recorder.train_solves += sum(bool(info.get("solved", False)) for info in path["env_infos"])
+                recorder.steps += len(path["actions"])
+            return original(self, paths)
+
+        buffer_class.add_paths = add_paths
+
+    def wrap_validation(self, algorithm_class) -> None:
+        """Record |Q| and greedy actions of every forward pass during `validate`, then a metrics row."""
+        import numpy as np
+        import torch
+        from rlkit.core.logging import compute_stats
+
+        original = algorithm_class.validate
+        recorder = self
+
+        def validate(self, snapshot):
+            qf = self.trainer.qf
+            outputs = []
+            handle = qf.register_forward_hook(lambda module, inputs, output: outputs.append(output.detach()))
+            try:
+                stats = original(self, snapshot)
+            finally:
+                handle.remove()
+            q = torch.cat([o.reshape(-1, o.shape[-1]) for o in outputs])
+            seen = {"max_q": float(q.abs().max()) if bool(q.isfinite().all()) else math.nan,
+                    "counts": np.bincount(q.argmax(-1).numpy(), minlength=NUM_ACTIONS)}
+            summary = compute_stats(stats, horizon=0, task_obj=self.eval_env.task[1])
+            recorder.write(self, summary, seen)
+            return stats
+
+        algorithm_class.validate = validate
+
+    def write(self, algorithm, summary: dict, seen: dict) -> None:
+        """One metrics row for the validation just run (``summary``: rlkit's compute_stats of it)."""
+        counts = seen["counts"]
+        total = max(int(counts.sum()), 1)
+        shares = counts / total
+        diag = algorithm.trainer.eval_statistics
+        strategy = getattr(getattr(algorithm.expl_data_collector, "_policy", None), "es", None)
+        epoch = self.collections - 2  # validation runs after the epoch's collection; epochs count from 0
+        success = summary["proportion_solved"]
+        row = {"epoch": epoch, "step": self.steps, "success": success, "made": summary["proportion_made"],
+               "made_axe": summary["proportion_made_axe"],
+               "max_q": seen["max_q"], "top_action": int(counts.argmax()), "top_action_share": float(shares.max()),
+               **{f"action_{a}": float(shares[a]) for a in range(NUM_ACTIONS)},
+               "y_pred_max": float(diag.get("Y Predictions Max", math.nan)),
+               "qf_loss": float(diag.get("QF Loss", math.nan)),
+               "epsilon": float(strategy.schedule(strategy.time)) if hasattr(strategy, "schedule") else math.nan,
+               "train_reward": self.train_reward, "train_solves": self.train_solves,
+               "seconds": round(time.time() - self.start, 1)}
+        with self.path.open("a", newline="") as f:
+            csv.DictWriter(f, METRIC_FIELDS).writerow(row)
+        print(f"step {self.steps:>8}  success {success:.2f}  max|Q| {seen['max_q']:.3g}  top action "
+              f"{row['top_action']} ({row['top_action_share']:.2f})  train reward {self.train_reward:g}", flush=True)
+        self.train_reward, self.train_solves = 0.0, 0
+
+
+def save_networks(out: Path, every: int = 500) -> None:
+    """Keep the online Q-network's weights every ``every`` epochs and at the end (``qf_<epoch>.pt``)."""
+    import torch
+    from rlkit.core.rl_algorithm import BaseRLAlgorithm
+
+    original = BaseRLAlgorithm._end_epoch
+
+    def _end_epoch(self, epoch, *args, **kwargs):
+        original(self, epoch, *args, **kwargs)
+        last = epoch + 1 == getattr(self, "num_epochs", -1)
+        if epoch % every == 0 or last:
+            torch.save(self.trainer.qf.state_dict(), out / f"qf_{epoch}.pt")
+
+    BaseRLAlgorithm._end_epoch = _end_epoch
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run one seed of one sweep point."""
+    args = parse_args(argv)
+    script = args.checkout / SCRIPTS.get(args.script, args.script)
+    if not script.is_file():
+        raise SystemExit(f"no script {script}; name one of {', '.join(SCRIPTS)} or a path inside --checkout")
+    if args.out.exists() and any(args.out.iterdir()):
+        raise SystemExit(f"{args.out} is not empty; pass a new --out")
+    shims.install(args.checkout)
+    import numpy as np
+    import torch
+
+    torch.set_num_threads(args.threads)
+    function, variant, launch = pick(collect_sweep(script), parse_settings(args.set))
+    if args.epochs is not None:
+        variant["algo_kwargs"]["algorithm_kwargs"]["num_epochs"] = args.epochs
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    from rlkit.core.rl_algorithm import BaseRLAlgorithm
+    from rlkit.data_management.replay_buffer import ReplayBuffer
+    from rlkit.launchers.launcher_util import setup_logger
+    from rlkit.torch.pytorch_util import set_gpu_mode
+
+    recorder = Recorder(args.out)
+    recorder.wrap_replay(ReplayBuffer)
+    recorder.wrap_validation(BaseRLAlgorithm)
+    variant["exp_id"], variant["seed"] = "0", str(args.seed)
+    setup_logger(exp_prefix=launch.get("exp_prefix", "released"), variant=variant, log_dir=str(args.out),
+                 snapshot_mode="none")
+    random.seed(args.seed)
+    np.random.seed(args.seed)
+    torch.manual_seed(args.seed)
+    set_gpu_mode(False)
+    (args.out / "command.json").write_text(json.dumps(
+        {"argv": sys.argv[1:], "script": SCRIPTS.get(args.script, args.script), "adjustments": shims.ADJUSTMENTS,
+         "torch": torch.__version__, "numpy": np.__version__}, indent=1) + "\n")
+    save_networks(args.out)
+    function(variant)
+    (args.out / "done.json").write_text(json.dumps({"steps": recorder.steps,
+                                                    "seconds": round(time.time() - recorder.start, 1)}) + "\n")
+
+
+if __name__ == "__main__":
+    main()

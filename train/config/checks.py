@@ -1,0 +1,60 @@
+"""Checks of configuration values: each raises a one-line ValueError that names the setting and what it must be."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = ["MAX_INT", "check_choices", "check_int", "check_kwargs", "check_layers", "check_number"]
+
+
+def check_number(name: str, value: Any, low: float | None = None, high: float | None = None,
+                 low_open: bool = False) -> None:
+    """Raise ValueError unless ``value`` is a finite number in the range (``low_open``: low excluded)."""
+    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and math.isfinite(value)
+    ok = ok and (low is None or (value > low if low_open else value >= low)) and (high is None or value <= high)
+    if not ok:
+        lo = "" if low is None else (f"> {low:g}" if low_open else f">= {low:g}")
+        span = f"in {'(' if low_open else '['}{low:g}, {high:g}]" if low is not None and high is not None else lo
+        raise ValueError(f"{name} must be a finite number {span}, got {value!r}")
+
+
+MAX_INT = 2**53
+"""Largest integer setting (beyond it no count fits the engine's 64-bit counters with room to grow)."""
+
+
+def check_int(name: str, value: Any, low: int = 1) -> None:
+    """Raise ValueError unless ``value`` is an integer in [``low``, `MAX_INT`]."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    if value > MAX_INT:
+        raise ValueError(f"{name} must be at most {MAX_INT}, got {value!r}")
+
+
+def check_layers(name: str, value: Any, allow_empty: bool = False) -> None:
+    """Raise ValueError unless ``value`` is a (non-empty) tuple of positive integer widths."""
+    if not isinstance(value, tuple) or (not value and not allow_empty) or any(
+            isinstance(w, bool) or not isinstance(w, int) or w < 1 for w in value):
+        need = "one or more" if not allow_empty else "zero or more"
+        raise ValueError(f"{name} must be {need} layer widths >= 1, got {value!r}")
+
+
+def check_kwargs(name: str, kwargs: Any, owned: Mapping[str, str]) -> None:
+    """Raise ValueError unless ``kwargs`` maps parameter names to values and names none of ``owned`` (the keys the
+    config sets itself, each with how to set it instead).
+    """
+    if not isinstance(kwargs, dict) or not all(isinstance(k, str) and k for k in kwargs):
+        raise ValueError(f"{name} must map parameter names to values, got {kwargs!r}")
+    taken = sorted(set(kwargs) & set(owned))
+    if taken:
+        raise ValueError(f"{name} may not set {taken[0]!r}: the config owns it ({owned[taken[0]]})")
+
+
+def check_choices(section: Any) -> None:
+    """Raise ValueError for a field whose value is not one of its declared ``choices``."""
+    for f in dataclasses.fields(section):
+        choices = f.metadata.get("choices")
+        if choices and getattr(section, f.name) not in choices:
+            raise ValueError(f"{f.name} must be one of {', '.join(choices)}, got {getattr(section, f.name)!r}")
