@@ -1,0 +1,91 @@
+r"""The released code's runs (`run_released.py`) beside an ecorl run of the same condition, at matched steps.
+
+For each step asked for, the evaluation nearest to it (within 2 500 steps) of every seed of each side: validation
+success (mean [min, max]), the largest |Q| of the validation rollouts (median [min, max], seeds above 10^3), the
+released trainer's batch statistic `Y Predictions Max` where there is one, and the greedy top-action share
+(median; seeds above the collapse threshold 0.6)::
+
+    python tools/original/compare.py docs/results/original/hunting-fig4/dynamic-reset-free-waypoint \
+        docs/results/paper/dynamism-waypoint/hunting/dynamic-reset-free --at 50000 100000 300000
+
+The first directory holds one ``seed<N>/metrics.csv`` per released seed; the others are ecorl run directories.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import statistics
+from pathlib import Path
+
+MATCH = 2_500
+"""The largest distance between a step asked for and the evaluation that stands for it."""
+BLOWN = 1e3
+"""|Q| above which a seed's values count as blown up in the table."""
+COLLAPSE = 0.6
+"""Top-action share above which a seed counts as collapsed (ecorl's COLLAPSE_SHARE)."""
+
+
+def released_seeds(folder: Path) -> dict[str, list[dict[str, float]]]:
+    """Each released seed's metrics rows (``seed*/metrics.csv``), as numbers."""
+    out = {}
+    for path in sorted(folder.glob("seed*/metrics.csv")):
+        with path.open() as f:
+            out[path.parent.name] = [{k: float(v) for k, v in row.items() if v not in ("", None)}
+                                     for row in csv.DictReader(f)]
+    return out
+
+
+def ecorl_seeds(run_dir: Path) -> dict[str, list[dict[str, float]]]:
+    """Each seed's rows of an ecorl run's metrics.csv."""
+    out: dict[str, list[dict[str, float]]] = {}
+    with (run_dir / "metrics.csv").open() as f:
+        for row in csv.DictReader(f):
+            values = {k: float(v) for k, v in row.items() if v not in ("", None)}
+            out.setdefault(f"seed{int(values['seed'])}", []).append(values)
+    return out
+
+
+def at(rows: list[dict[str, float]], step: int) -> dict[str, float] | None:
+    """The row nearest to ``step`` within `MATCH`, else None."""
+    best = min(rows, key=lambda r: abs(r["step"] - step), default=None)
+    return best if best is not None and abs(best["step"] - step) <= MATCH else None
+
+
+def summary(seeds: dict[str, list[dict[str, float]]], step: int) -> str:
+    """One table cell: the seeds' evaluations nearest to ``step``."""
+    rows = [r for r in (at(v, step) for v in seeds.values()) if r is not None]
+    if not rows:
+        return "—"
+    success = [r["success"] for r in rows]
+    q = [r["max_q"] for r in rows]
+    finite = [v for v in q if math.isfinite(v)]
+    parts = [f"n={len(rows)}", f"success {statistics.mean(success):.1%} [{min(success):.0%}, {max(success):.0%}]",
+             f"max|Q| {statistics.median(finite):.3g} [{min(finite):.3g}, {max(finite):.3g}]" if finite else "max|Q| —",
+             f"{sum(not (v <= BLOWN) for v in q)} above {BLOWN:g}"]
+    if all("y_pred_max" in r for r in rows):
+        parts.append(f"batch Q(s,a) max {statistics.median(r['y_pred_max'] for r in rows):.3g}")
+    if all("top_action_share" in r and math.isfinite(r["top_action_share"]) for r in rows):
+        shares = [r["top_action_share"] for r in rows]
+        parts.append(f"top action {statistics.median(shares):.0%} ({sum(s > COLLAPSE for s in shares)} collapsed)")
+    return "; ".join(parts)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("released", type=Path, help="a folder of released runs, seed<N>/metrics.csv")
+    parser.add_argument("ecorl", type=Path, nargs="+", help="ecorl run directories of the same condition")
+    parser.add_argument("--at", type=int, nargs="+", required=True, help="steps to compare at")
+    args = parser.parse_args(argv)
+    sides = [(f"released ({args.released.as_posix()})", released_seeds(args.released))]
+    sides += [(f"ecorl ({path.as_posix()})", ecorl_seeds(path)) for path in args.ecorl]
+    print("| step | " + " | ".join(name for name, _ in sides) + " |")
+    print("|---|" + "---|" * len(sides))
+    for step in args.at:
+        print(f"| {step:,} | " + " | ".join(summary(seeds, step) for _, seeds in sides) + " |")
+
+
+if __name__ == "__main__":
+    main()
