@@ -30,11 +30,14 @@ demo: setup
 		--out results --report \
 		--minutes $$($(BIN)/python -c "import time; print(round(($(DEMO_SECONDS) - (time.time() - $(DEMO_START))) / 60, 2))")
 
+# The suite on every core (pytest-xdist), a test file per worker so each module's fixtures are built once.
+PYTEST_PARALLEL ?= -n auto --dist loadfile
+
 test: setup
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q $(PYTEST_PARALLEL)
 
 test-all: setup
-	$(BIN)/python -m pytest -q -m ""
+	$(BIN)/python -m pytest -q $(PYTEST_PARALLEL) -m ""
 
 bench: setup
 	$(BIN)/python benchmarks/bench_gridtasks.py

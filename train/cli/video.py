@@ -9,6 +9,9 @@ from pathlib import Path
 from train.cli.common import nonnegative, positive, probability, user_errors
 from train.rundir import RunDirError
 
+VIDEO_DIR = Path("results") / "videos"
+"""Where a film of a policy file or a random policy goes unless --out says otherwise (results/ is git-ignored)."""
+
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """``ecorl video TASK [--policy RUN_DIR_OR_FILE | --random] [--out FILE.mp4] ...``."""
@@ -25,8 +28,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="run directory, its checkpoint.npz, or a policy file (.npz) whose network acts")
     source.add_argument("--random", action="store_true", help="a uniform random policy")
     parser.add_argument("--out", type=Path, default=None,
-                        help="output MP4 (default: RUN_DIR/video.mp4 for a run, else TASK-trained.mp4 or "
-                             "TASK-random.mp4)")
+                        help="output MP4 (default: RUN_DIR/video.mp4 for a run, else results/videos/TASK-trained.mp4 "
+                             "or results/videos/TASK-random.mp4)")
     parser.add_argument("--episodes", type=positive, default=None,
                         help="whole episodes to film, each at most the test horizon (default: three, fewer where "
                              "the first already fills the film, as a 1 000-decision food-collector episode does)")
@@ -47,15 +50,15 @@ def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
     from train.policy import POLICY_DIR, is_policy_file, resolve_run_dir, shipped_policy
 
     if args.random:
-        return None, Path(f"{args.task}-random.mp4")
+        return None, VIDEO_DIR / f"{args.task}-random.mp4"
     if args.policy is None:
         shipped = shipped_policy(args.task)
         if shipped is None:
             print(f"ecorl video: no trained policy for {args.task} in {POLICY_DIR}; filming a random policy "
                   f"(pass --policy to film your own)", file=sys.stderr)
-        return shipped, Path(f"{args.task}-{'trained' if shipped else 'random'}.mp4")
+        return shipped, VIDEO_DIR / f"{args.task}-{'trained' if shipped else 'random'}.mp4"
     if is_policy_file(args.policy):
-        return args.policy, Path(f"{args.task}-trained.mp4")
+        return args.policy, VIDEO_DIR / f"{args.task}-trained.mp4"
     return args.policy, resolve_run_dir(args.policy) / "video.mp4"
 
 

@@ -97,20 +97,6 @@ def test_random_video(tmp_path, capsys):
     assert _frames(out) >= 13
 
 
-def test_policy_video_from_a_run(smoke_root, tmp_path, capsys):
-    run_dir = smoke_root / "headline" / "salad" / "dynamic-reset-free"
-    out = tmp_path / "policy.mp4"
-    assert cli.main(["video", "salad", "--policy", str(run_dir / "checkpoint.npz"), "--agent", "1",
-                          "--steps", "20", "--out", str(out), "--seed", "3"]) == 0
-    assert _frames(out) >= 21
-    assert cli.main(["video", "salad", "--policy", str(run_dir), "--train-env", "--steps", "10",
-                          "--out", str(tmp_path / "train.mp4")]) == 0
-    assert cli.main(["video", "hunting", "--policy", str(run_dir), "--out", str(tmp_path / "x.mp4")]) == 2
-    assert "trained on 'salad'" in capsys.readouterr().err
-    assert cli.main(["video", "salad", "--policy", str(run_dir), "--agent", "5"]) == 2
-    assert cli.main(["video", "salad", "--policy", str(tmp_path)]) == 2
-
-
 class _CountingEnv:
     """Episodes of ``length`` steps, solved when the action was 1 on the last step; frames number the steps."""
 

@@ -1,4 +1,5 @@
-"""The demo's page in a real browser: every image loads and every video plays (headless Chromium).
+"""The demo's page in a real browser: every image loads and every video plays (headless Chromium); the README's
+screenshot of it (assets/demo-page.png) is re-made here, so it shows the page as the code draws it now.
 
 Skipped, with a message, where the distribution's Chromium (``/usr/bin/chromium``) is not installed
 (``apt-get install chromium``).
@@ -68,6 +69,21 @@ def test_the_demo_page_shows_every_image_and_plays_every_video(tmp_path):
     assert len(images) >= 6 and len(videos) == 2  # 2 shipped panels, curves, heat-maps, 2 posters; 2 videos
     assert all(i["ok"] for i in images), [i for i in images if not i["ok"]]
     assert all(v["ok"] and v["canPlay"] in ("probably", "maybe") and v["width"] > 0 for v in videos), videos
+    screenshot(page, tmp_path / "chromium-profile", SCREENSHOT)  # the README's picture of this page, re-made
+    assert SCREENSHOT.stat().st_size > 20_000
+
+
+SCREENSHOT = Path(__file__).resolve().parents[3] / "assets" / "demo-page.png"
+"""The README's picture of the top of the demo's page, re-made by every run of the browser test."""
+
+
+def screenshot(page: Path, profile: Path, out: Path) -> Path:
+    """A PNG of the top of ``page`` as headless Chromium draws it at 1 200 x 1 500 pixels."""
+    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+             "--disable-component-update", "--no-first-run", "--hide-scrollbars", f"--user-data-dir={profile}",
+             "--window-size=1200,1500", "--virtual-time-budget=10000", f"--screenshot={out}"]
+    subprocess.run([str(CHROMIUM), *flags, page.resolve().as_uri()], capture_output=True, timeout=180, check=True)
+    return out
 
 
 def test_the_browser_check_sees_a_video_that_does_not_play(tmp_path):

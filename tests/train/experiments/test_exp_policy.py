@@ -26,10 +26,20 @@ from train.policy import (
 RUN = ("headline", "salad", "dynamic-reset-free")
 
 
-@pytest.fixture
-def run_dir(smoke_root):
-    """A finished smoke run of salad (several seeds)."""
-    return smoke_root.joinpath(*RUN)
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    """A finished smoke run of salad (several seeds) inside its experiment's results, as `ecorl run` leaves it
+    (this module's own: the whole smoke results directory is another test file's, built on another worker).
+    """
+    from train.experiments.catalog import EXPERIMENTS
+    from train.experiments.sweep import plan, run_jobs, write_experiment_file
+
+    root = tmp_path_factory.mktemp("policy-run")
+    experiment, task, condition = RUN
+    jobs = plan(EXPERIMENTS[experiment], "smoke", root, [task], conditions=[condition])
+    write_experiment_file(EXPERIMENTS[experiment], "smoke", jobs, root)
+    assert [r.status for r in run_jobs(jobs, "local", workers=1, progress=False)] == ["done"]
+    return root.joinpath(*RUN)
 
 
 def _random_obs(policy, n: int = 64) -> torch.Tensor:
@@ -184,7 +194,7 @@ def test_video_defaults_to_the_shipped_policy(tmp_path, capsys, monkeypatch):
     assert cli.main(["video", "scavenging", "--steps", "5"]) == 0
     written = capsys.readouterr()
     name = "scavenging-trained.mp4" if shipped_policy("scavenging") else "scavenging-random.mp4"
-    assert written.out.strip() == name and (tmp_path / name).exists()
+    assert written.out.strip() == f"results/videos/{name}" and (tmp_path / "results" / "videos" / name).exists()
     assert cli.main(["video", "foodcollector", "--steps", "3"]) == 0
     assert "no trained policy for foodcollector" in capsys.readouterr().err
 

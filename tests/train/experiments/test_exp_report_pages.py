@@ -113,8 +113,36 @@ def test_a_headline_page_leads_with_the_shipped_paper_budget_panels(tmp_path, na
     make_report(root, videos=False)
     md = (root / "report.md").read_text()
     assert md.index("At the paper's budget") < md.index(f"## {name} (")
+    other = "headline-waypoint" if name == "headline" else "headline"
+    assert md.index(f"### {name}:") < md.index(f"### {other}:")  # the page's own experiment first
     assert "static non-episodic: 0.3% [0.0, 0.6], 0 / 10 seeds learned (paper ≈ 0%)" in md  # sparse headline
-    assert (root / "figures" / "shipped_headline_curves.png").exists()
+    assert (root / "figures" / "shipped_headline_curves.png").exists()  # one live condition: no contrast drawn
+
+
+def test_the_demo_page_draws_the_live_contrast_on_its_shipped_runs_and_says_if_it_separates(tmp_path):
+    import json
+
+    from train.experiments.catalog import get_experiment
+    from train.experiments.report.lead import run_summary
+    from train.rundir import EXPERIMENT_FILE
+
+    exp = get_experiment("headline-waypoint")
+    root = tmp_path / "results" / exp.name
+    (root).mkdir(parents=True)
+    (root / EXPERIMENT_FILE).write_text(json.dumps({**exp.describe(), "budget": "quick"}))
+    header = "step,seed,epsilon,loss,success,return,train_reward,steps_per_s\n"
+    for condition, values in (("static-reset-free", (0.0, 0.01, 0.0)), ("dynamic-reset-free", (0.0, 0.3, 0.05))):
+        run = root / "salad" / condition
+        run.mkdir(parents=True)
+        (run / "metrics.csv").write_text(header + "".join(f"50000,{k},0.5,0,{v},0,0,1\n"
+                                                          for k, v in enumerate(values)))
+    make_report(root, videos=False)
+    md = (root / "report.md").read_text()
+    first_image = md[md.index("!["):].split("(", 1)[1].split(")", 1)[0]
+    assert first_image == "figures/live_vs_shipped_headline-waypoint.png" and (root / first_image).exists()
+    summary = run_summary(root)
+    assert "  At 50,000 steps the intervals overlap: this run cannot tell the two apart yet." in summary
+    assert any("the decisive runs: docs/results/paper/headline-waypoint" in line for line in summary)
 
 
 def test_videos_are_h264_padded_to_even_sizes_and_byte_stable(tmp_path):

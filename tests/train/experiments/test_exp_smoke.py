@@ -8,6 +8,7 @@ import shutil
 
 import pytest
 
+from train import cli
 from train.checkpoint import CHECKPOINT_NAME
 from train.experiments.catalog import EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
@@ -114,3 +115,26 @@ def test_results_shipped_without_checkpoints_are_filmed_from_their_exported_poli
         info = json.loads((run / "video.json").read_text())
         best = json.loads((smoke_root / "headline-waypoint" / "salad" / cond.name / "video.json").read_text())
         assert info["seed"] == best["seed"]  # the exported best seed is the seed the checkpoint's film shows
+
+
+def _frames(path) -> int:
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+    cap.release()
+    return n
+
+
+def test_policy_video_from_a_run(smoke_root, tmp_path, capsys):
+    run_dir = smoke_root / "headline" / "salad" / "dynamic-reset-free"
+    out = tmp_path / "policy.mp4"
+    assert cli.main(["video", "salad", "--policy", str(run_dir / "checkpoint.npz"), "--agent", "1",
+                          "--steps", "20", "--out", str(out), "--seed", "3"]) == 0
+    assert _frames(out) >= 21
+    assert cli.main(["video", "salad", "--policy", str(run_dir), "--train-env", "--steps", "10",
+                          "--out", str(tmp_path / "train.mp4")]) == 0
+    assert cli.main(["video", "hunting", "--policy", str(run_dir), "--out", str(tmp_path / "x.mp4")]) == 2
+    assert "trained on 'salad'" in capsys.readouterr().err
+    assert cli.main(["video", "salad", "--policy", str(run_dir), "--agent", "5"]) == 2
+    assert cli.main(["video", "salad", "--policy", str(tmp_path)]) == 2

@@ -85,7 +85,8 @@ def condition_color(name: str) -> str:
     return condition_colors([name])[name]
 
 
-def _pyplot():
+def pyplot():
+    """Matplotlib's pyplot on the headless Agg backend (imported on first use)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -110,7 +111,7 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     panels = curve_panels(exp)
     if not panels:
         return None
-    plt = _pyplot()
+    plt = pyplot()
     ncols = min(len(panels), 5)
     nrows = math.ceil(len(panels) / ncols)
     width = max(4.2 * ncols, 7.5)
@@ -154,7 +155,7 @@ def plot_curves(exp: ExperimentResults, paper: dict, out: Path,
     title = (f"{exp.info.get('paper', '')}: {exp.info.get('title', exp.name)} (mean and {CI_LEVEL:.0%} bootstrap "
              f"CI over {'/'.join(map(str, seeds))} seeds; thin lines: single seeds)")
     fig.suptitle(textwrap.fill(title, int(width * 11)), fontsize=11)
-    _save_figure(fig, out, dpi=110)
+    save_figure(fig, out, dpi=110)
     return out
 
 
@@ -167,7 +168,7 @@ def plot_collapse(exp: ExperimentResults, out: Path) -> Path | None:
     panels = [(title, runs) for title, runs in panels if runs]
     if not panels:
         return None
-    plt = _pyplot()
+    plt = pyplot()
     ncols = min(len(panels), 5)
     nrows = math.ceil(len(panels) / ncols)
     width = max(4.2 * ncols, 7.5)
@@ -193,7 +194,7 @@ def plot_collapse(exp: ExperimentResults, out: Path) -> Path | None:
     title = (f"{exp.info.get('paper', '')}: how often the greedy policy picks its most frequent action on the "
              f"validation rollouts (dashed: {COLLAPSE_SHARE:.0%}, above it a seed counts as collapsed)")
     fig.suptitle(textwrap.fill(title, int(width * 11)), fontsize=10)
-    _save_figure(fig, out, dpi=100)
+    save_figure(fig, out, dpi=100)
     return out
 
 
@@ -248,13 +249,13 @@ def _style_panel(ax, title: str, metric: str, own_legend: bool) -> None:
         ax.legend(fontsize=7, frameon=False, loc="upper left")
 
 
-def _save_figure(fig, out: Path, dpi: int) -> None:
+def save_figure(fig, out: Path, dpi: int) -> None:
     """Write a figure as PNG atomically and close it."""
     try:
         with atomic_file(out) as f:
             fig.savefig(f, format="png", dpi=dpi, metadata=PNG_METADATA)
     finally:
-        _pyplot().close(fig)
+        pyplot().close(fig)
 
 
 def heatmap_snapshot_files(run_dir: Path, points: int = HEATMAP_POINTS) -> list[Path]:
@@ -282,7 +283,7 @@ def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
     if not rows:
         return None
     color_of = report_colors(exp)  # as in the report's curves
-    plt = _pyplot()
+    plt = pyplot()
     ncols = max(len(s) for _, s in rows)
     width = 2.3 * ncols + 3.2
     fig, axes = plt.subplots(len(rows), ncols, figsize=(width, 2.3 * len(rows) + 0.8), squeeze=False,
@@ -304,7 +305,7 @@ def plot_heatmaps(exp: ExperimentResults, task: str, out: Path) -> Path | None:
     title = (f"{exp.info.get('paper', '')}: where the agent was on {task} (share of all visits so far per cell, "
              f"summed over seeds; one colour scale per row)")
     fig.suptitle(textwrap.fill(title, int(width * 13)), fontsize=9)
-    _save_figure(fig, out, dpi=100)
+    save_figure(fig, out, dpi=100)
     return out
 
 
@@ -315,7 +316,7 @@ def plot_seed_curves(exp: ExperimentResults, out: Path) -> Path | None:
     if not exp.runs:
         return None
     run = exp.runs[0]
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.6), layout="constrained")
     cmap = plt.get_cmap("tab10")
     first = int(exp.info.get("first_seed", 0))
@@ -328,5 +329,5 @@ def plot_seed_curves(exp: ExperimentResults, out: Path) -> Path | None:
     _style_panel(ax, run.task, run.metric, own_legend=False)
     ax.legend(fontsize=8, frameon=False, loc="upper left", ncol=2 if run.seeds > 5 else 1)
     fig.suptitle(textwrap.fill(exp.info.get("title", exp.name), 90), fontsize=10)
-    _save_figure(fig, out, dpi=110)
+    save_figure(fig, out, dpi=110)
     return out

@@ -8,19 +8,20 @@ sentence of the claim: static non-episodic fails, dynamic non-episodic learns.
 from __future__ import annotations
 
 import html
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from train.experiments.report import runs
-from train.experiments.report.figures import plot_curves
-from train.experiments.report.runs import ExperimentResults, load_experiment
-from train.experiments.report.stats import LEARNED, summarize
+from train.experiments.report.figures import condition_colors, plot_curves, pyplot, save_figure
+from train.experiments.report.runs import ExperimentResults, Run, load_experiment
+from train.experiments.report.stats import LEARNED, bootstrap_ci, summarize
 from train.experiments.report.tables import FINAL_COLUMNS, final_rows
 from train.rundir import EXPERIMENT_FILE
 
-LEAD = {"headline": ("headline", "headline-waypoint"), "headline-waypoint": ("headline", "headline-waypoint")}
-"""Experiment -> the shipped experiments its page leads with."""
+LEAD = {"headline": ("headline", "headline-waypoint"), "headline-waypoint": ("headline-waypoint", "headline")}
+"""Experiment -> the shipped experiments its page leads with: its own first (drawn with the live runs on it)."""
 
 CONTRAST = ("static-reset-free", "dynamic-reset-free")
 """The two conditions of the paper's claim: without resets, a static world fails and a dynamic one learns."""
@@ -65,9 +66,14 @@ def contrast_sentence(exp: ExperimentResults, paper: dict) -> str:
     return f"At {step:,} steps, " + "; ".join(parts) + f" (learned: > {LEARNED:.0%} of the layouts solved)."
 
 
-def build_leads(names: list[str], out: Path, paper_all: dict) -> list[Lead]:
-    """Re-draw the shipped experiments ``names`` (those shipped with runs) into ``out/figures``."""
+def build_leads(names: list[str], out: Path, paper_all: dict,
+                live: list[ExperimentResults] | None = None) -> list[Lead]:
+    """Re-draw the shipped experiments ``names`` (those shipped with runs) into ``out/figures``; the one of the
+    same name as a ``live`` experiment (the page's own runs) is drawn with the live runs' contrast on it
+    (`plot_live_contrast`).
+    """
     leads = []
+    own = {exp.name: exp for exp in live or []}
     for name in names:
         path = runs.REFERENCE_DIR / name
         if not (path / EXPERIMENT_FILE).exists():
@@ -76,10 +82,77 @@ def build_leads(names: list[str], out: Path, paper_all: dict) -> list[Lead]:
         if not exp.runs:
             continue
         paper = paper_all.get(name, {})
-        figure = plot_curves(exp, paper, out / "figures" / f"shipped_{name}_curves.png")
+        figure = None
+        if name in own:
+            figure = plot_live_contrast(exp, own[name], out / "figures" / f"live_vs_shipped_{name}.png")
+        if figure is None:
+            figure = plot_curves(exp, paper, out / "figures" / f"shipped_{name}_curves.png")
         if figure is not None:
             leads.append(Lead(exp, figure, final_rows(exp, paper), contrast_sentence(exp, paper)))
     return leads
+
+
+def _contrast_runs(exp: ExperimentResults) -> list[Run]:
+    """The experiment's `CONTRAST` runs, in that order (those it has; none when it spans several tasks)."""
+    if len(exp.tasks) != 1:
+        return []
+    by_name = {r.condition: r for r in exp.runs}
+    return [by_name[c] for c in CONTRAST if c in by_name]
+
+
+def plot_live_contrast(shipped: ExperimentResults, live: ExperimentResults, out: Path) -> Path | None:
+    """The `CONTRAST` pair on one axis: the shipped runs' mean and 95% CI over their whole budget, the live runs'
+    (this machine's) on the same scale, each curve labelled at its end with its final value and interval. None
+    when either side lacks the pair.
+    """
+    ours, theirs = _contrast_runs(live), _contrast_runs(shipped)
+    if len(ours) != len(CONTRAST) or len(theirs) != len(CONTRAST):
+        return None
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(10, 5.2), layout="constrained")
+    colors = condition_colors(CONTRAST)
+    for run, kind in [(r, "shipped") for r in theirs] + [(r, "live") for r in ours]:
+        mean, low, high = bootstrap_ci(run.values)
+        color = colors[run.condition]
+        style = {"shipped": dict(lw=1.4, ls="--", alpha=0.9), "live": dict(lw=2.6, ls="-", alpha=1.0)}[kind]
+        ax.plot(run.steps, mean, color=color, **style)
+        ax.fill_between(run.steps, low, high, color=color, alpha=0.12 if kind == "shipped" else 0.25, lw=0)
+        text, _ = summarize(run.values[-1], run.metric)
+        label = (f"{run.condition.replace('-reset-free', ' non-episodic')}, {kind} "
+                 f"({run.seeds} seeds): {text}")
+        box = dict(boxstyle="round,pad=0.25", fc="white", ec=color, alpha=0.9) if kind == "live" else None
+        ax.annotate(label, (run.steps[-1], mean[-1]), xytext=(8, 10 if kind == "live" else 0),
+                    textcoords="offset points", color=color, fontsize=8.5, va="center", bbox=box,
+                    fontweight="bold" if kind == "live" else "normal")
+    ax.set_xlim(0, max(int(r.steps[-1]) for r in theirs) * 1.6)
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("fraction of validation tasks solved")
+    ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 3))
+    ax.grid(alpha=0.3)
+    steps = max(int(r.steps[-1]) for r in ours)
+    ax.set_title(textwrap.fill(f"{shipped.info.get('title', shipped.name)}: your live runs (solid, to {steps:,} "
+                               f"steps) on the shipped 10-seed runs (dashed); mean and 95% CI", 110), fontsize=10)
+    save_figure(fig, out, dpi=110)
+    return out
+
+
+def separation_sentence(exp: ExperimentResults) -> str:
+    """Whether the `CONTRAST` pair's final intervals separate, in words ('' without the pair)."""
+    pair = _contrast_runs(exp)
+    if len(pair) != len(CONTRAST):
+        return ""
+    (static, dynamic) = pair
+    _, s_low, s_high = bootstrap_ci(static.values[-1])
+    _, d_low, d_high = bootstrap_ci(dynamic.values[-1])
+    if d_low > s_high:
+        verdict = "the intervals separate: dynamic above static"
+    elif s_low > d_high:
+        verdict = "the intervals separate: static above dynamic"
+    else:
+        verdict = "the intervals overlap: this run cannot tell the two apart yet"
+    step = int(max(r.steps[-1] for r in pair))
+    return f"At {step:,} steps {verdict}."
 
 
 def lead_names(experiments: list[str], source: Path) -> list[str]:
@@ -138,11 +211,15 @@ def run_summary(path: Path) -> list[str]:
         ours, learned = summarize(run.values[-1], run.metric)
         name = f"{run.task}, {run.label}" if several_tasks else run.label
         lines.append(f"  {name}: {ours} at {int(run.steps[-1]):,} steps, {learned} seeds learned")
+    separation = separation_sentence(exp)
+    if separation:
+        lines.append(f"  {separation}")
     paper_all = load_paper()
     for name in lead_names([exp.name], path):
         shipped = runs.REFERENCE_DIR / name
         if (shipped / EXPERIMENT_FILE).exists():
             sentence = contrast_sentence(load_experiment(shipped), paper_all.get(name, {}))
             if sentence:
-                lines.append(f"{name} at the paper's budget (shipped, 10 seeds): {sentence}")
+                lines.append(f"{name} at the paper's budget (shipped, 10 seeds, the decisive runs: "
+                             f"{source_name(shipped)}): {sentence}")
     return lines

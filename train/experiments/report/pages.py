@@ -327,7 +327,8 @@ def make_report(root: str | Path, videos: bool | None = None, out: str | Path | 
         raise ReportError(f"{root} is neither an experiment's results ({EXPERIMENT_FILE} not found in it or in "
                           f"its subdirectories) nor an ecorl train run directory (config.json and metrics.csv); "
                           f"give a directory written by `ecorl run EXPERIMENT --out DIR` or by `ecorl train`")
-    leads = build_leads(lead_names([s.exp.name for s in sections], source), target, load_paper())
+    leads = build_leads(lead_names([s.exp.name for s in sections], source), target, load_paper(),
+                        [s.exp for s in sections])
     md = write_markdown(source, target, sections, leads)
     page = write_html(source, target, sections, web_videos(source, target, sections), leads)
     written = [lead.figure for lead in leads]
