@@ -74,3 +74,14 @@ def test_run_with_minutes_measures_the_machine_and_sizes_the_runs(tmp_path, caps
     err = capsys.readouterr()
     assert "steps/s per seed" in err.err and "steps per seed (predicted" in err.err
     assert "1 runs" in err.err and "[   new]" in err.out
+
+
+def test_speed_is_measured_in_as_many_processes_as_will_train_side_by_side():
+    from train.experiments.catalog import SMOKE, get_experiment, job_config
+    from train.experiments.timebox import measure_speed_together
+
+    exp = get_experiment("headline-waypoint")
+    config = job_config(exp, "salad", exp.conditions["salad"][1], SMOKE).to_dict()
+    together = measure_speed_together(config, 2)
+    assert together.random_epoch_s > 0 and together.greedy_epoch_s >= together.random_epoch_s
+    assert together.evaluation_s > 0 and together.startup_s > 0
