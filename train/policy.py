@@ -307,14 +307,19 @@ RUN_POLICIES_DIR = "policies"
 
 def export_run_policies(run_dir: str | Path, state: dict[str, Any] | None = None) -> dict[str, Path]:
     """Write a run's best and median seed, by their last validation success (the return where the task has
-    no success), as ``RUN_DIR/policies/best.npz`` and ``median.npz`` (the upper median of an even count);
-    ``state`` is the run's checkpoint state if already in memory. Empty if the run has no evaluation yet.
+    no success), as ``RUN_DIR/policies/best.npz`` and ``median.npz`` (the upper median of an even count), among
+    the seeds whose weights are finite (a diverged seed's NaN network cannot act); ``state`` is the run's
+    checkpoint state if already in memory. Empty if the run has no evaluation yet, or every seed diverged.
     """
     run_dir, state = (Path(run_dir), state) if state is not None else load_run(run_dir)
     step = int(state["step"])
     scores = validation_success(run_dir, step)
     if scores and all(np.isnan(v) for v in scores.values()):
         scores = validation_success(run_dir, step, "return")
+    if not scores:
+        return {}
+    online = state["agent"]["online"]
+    scores = {k: v for k, v in scores.items() if bool(torch.isfinite(online[k]).all())}  # diverged seeds cannot act
     if not scores:
         return {}
     ranked = sorted(scores, key=lambda k: (-np.nan_to_num(scores[k], nan=-np.inf), k))

@@ -49,9 +49,9 @@ def _finite(array: np.ndarray, what: str) -> None:
         raise ValueError(f"{what} holds {int((~np.isfinite(array)).sum())} NaN or infinite values")
 
 
-def check_tree(saved: Any, live: Any, what: str) -> None:
-    """Same structure as ``live``: tensors/arrays of its dtype and shape with finite values, ints >= 0,
-    booleans, finite floats, equal strings, generator states their generator accepts.
+def check_tree(saved: Any, live: Any, what: str, finite: bool = True) -> None:
+    """Same structure as ``live``: tensors/arrays of its dtype and shape with finite values (any values where
+    not ``finite``), ints >= 0, booleans, finite floats, equal strings, generator states their generator accepts.
     """
     if isinstance(live, dict) and "bit_generator" in live:
         check_rng_state(saved, getattr(np.random, live["bit_generator"])(), what)
@@ -59,17 +59,19 @@ def check_tree(saved: Any, live: Any, what: str) -> None:
         if not isinstance(saved, dict) or set(saved) != set(live):
             raise ValueError(f"{what} does not have this run's fields")
         for key, value in live.items():
-            check_tree(saved[key], value, f"{what}/{key}")
+            check_tree(saved[key], value, f"{what}/{key}", finite)
     elif isinstance(live, list):
         if not isinstance(saved, list) or len(saved) != len(live):
             raise ValueError(f"{what} does not hold {len(live)} entries")
         for i, (a, b) in enumerate(zip(saved, live)):
-            check_tree(a, b, f"{what}/{i}")
+            check_tree(a, b, f"{what}/{i}", finite)
     elif isinstance(live, str):
         if saved != live:
             raise ValueError(f"{what} is {saved!r}, not {live!r}")
     elif isinstance(live, (torch.Tensor, np.ndarray)):
-        _finite(_array(saved, live, what), what)
+        array = _array(saved, live, what)
+        if finite:
+            _finite(array, what)
     elif isinstance(live, bool):
         if not isinstance(saved, bool):
             raise ValueError(f"{what} is {saved!r}, not true or false")
@@ -152,9 +154,11 @@ def check_state(state: dict[str, Any], trainer: Any, part: int = 0) -> None:
     check_counter(state.get("epoch"), "epoch", 0, step)
     check_counter(state.get("loss_count"), "loss_count")
     check_counter(state.get("last_checkpoint"), "last_checkpoint", -1, step)
-    check_tree(state.get("agent"), live["agent"], "agent")
+    # a diverged seed's weights and optimiser moments may be NaN or infinite: they stay in its own row (every
+    # update is per seed), so the run resumes and the other seeds train on
+    check_tree(state.get("agent"), live["agent"], "agent", finite=False)
     if live["rnd"] is not None:
-        check_tree(state.get("rnd"), live["rnd"], "rnd")
+        check_tree(state.get("rnd"), live["rnd"], "rnd", finite=False)
     check_replay(state.get("replay"), live["replay"], cfg.dqn.buffer_size, trainer.info.num_actions)
     rngs = state.get("rngs")
     streams = {name: gens[piece.rows] for name, gens in trainer.learner.rngs.items()}

@@ -258,7 +258,9 @@ def test_a_kill_inside_the_first_checkpoint_write_is_no_dead_end(tmp_path, capsy
 
 
 def test_a_signal_stops_an_endless_evaluation_within_seconds(tmp_path):
-    args = ["train", "salad", "--steps", "400", *TINY, "--eval-horizon", "1000000000000", "--out", str(tmp_path / "r")]
+    # the longest evaluation accepted, 1 000 rollouts of 100 000 steps: minutes, where the signal must act in seconds
+    args = ["train", "salad", "--steps", "400", *TINY, "--eval-horizon", "100000", "--eval-rollouts", "1000",
+            "--out", str(tmp_path / "r")]
     proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120  # start-up takes seconds on an idle machine, far longer on a loaded one
@@ -268,7 +270,7 @@ def test_a_signal_stops_an_endless_evaluation_within_seconds(tmp_path):
         assert proc.poll() is None
         proc.send_signal(signal.SIGTERM)
         began = time.monotonic()
-        # the evaluation never ends, so any stop is the signal's doing; the bound is loose because a loaded
+        # the evaluation takes minutes, so a stop in seconds is the signal's doing; the bound is loose because a loaded
         # CI machine once took 3.4 s (the signal is checked about once a second inside an evaluation)
         code = proc.wait(timeout=60)
         assert time.monotonic() - began < 30
@@ -337,3 +339,21 @@ def test_report_reads_no_fifo_or_link(finished, tmp_path, capsys, name):
     (run / name).symlink_to(finished / name)
     assert main(["report", str(run), "--out", str(tmp_path / "link")]) == 2
     assert "symbolic link" in one_line(capsys)
+
+
+def test_sizes_a_file_sets_are_capped_before_use(tmp_path, capsys):
+    """A policy header or a checkpoint's config asking for an endless evaluation, or a million threads, is refused."""
+    from train import cli
+    from train.policy import load_policy_file
+
+    policy = load_policy_file(sorted((REPO / "assets" / "policies").glob("*.npz"))[0])
+    header = {"format": 1, "config": policy.cfg.to_dict(), "seed": policy.seed, "meta": {}}
+    for section, key, value in (("eval", "eval_horizon", 10**12), ("eval", "eval_rollouts", 10**9),
+                                ("run", "threads", 10**6)):
+        bad = json.loads(json.dumps(header))
+        bad["config"][section][key] = value
+        path = tmp_path / f"{key}.npz"
+        np.savez_compressed(path, params=policy.params.numpy(), header=np.array(json.dumps(bad)))
+        assert cli.main(["evaluate", str(path), "--rollouts", "1"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert f"{key} must be at most" in err and len(err.splitlines()) == 1, err

@@ -195,3 +195,27 @@ def test_a_checkpoint_from_before_the_collapse_columns_still_resumes(tmp_path):
     assert np.array_equal(again.parts[0].visits_at_eval, state["visits"])
     assert all(math.isnan(row["top_action_share"]) for row in again.rows)
     again.close()
+
+
+def test_a_diverged_seed_resumes_and_neither_blocks_the_others_nor_is_exported(tmp_path):
+    from train.policy import export_run_policies, load_policy
+    from train.rundir import RunDir
+
+    cfg = SMALL.replace(seeds=3, reset_free=True, steps=600)
+    run = tmp_path / "run"
+    trainer = Trainer(cfg, run)
+    trainer.run()
+    state = trainer.state_dict()
+    trainer.close()
+    for name in ("online", "target"):  # seed 1 blew up: its whole network is NaN
+        state["agent"][name][1] = float("nan")
+    RunDir(run).save_checkpoint(state)
+    resumed = Trainer(cfg.replace(steps=1000), run, resume=True)  # refused before: "agent/online holds NaN"
+    resumed.run()
+    resumed.close()
+    last = [r for r in _metrics(run) if int(r["step"]) == max(int(x["step"]) for x in _metrics(run))]
+    assert math.isnan(float(last[1]["max_q"])) and all(math.isfinite(float(last[k]["max_q"])) for k in (0, 2))
+    picked = {load_policy(p).seed for p in export_run_policies(run).values()}
+    assert picked and 1 not in picked  # best and median among the seeds that can act
+    with pytest.raises(ValueError, match="lr must be"):
+        TrainConfig().replace(lr=1e30)

@@ -19,7 +19,20 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ecology import REWARD_MODES, VALIDATION_SEED_BASE, parse_schedule
-from train.config.checks import check_choices, check_int, check_kwargs, check_layers, check_number
+from train.config.checks import (
+    MAX_EVAL_HORIZON,
+    MAX_EVAL_ROLLOUTS,
+    MAX_THREADS,
+    check_choices,
+    check_int,
+    check_kwargs,
+    check_layers,
+    check_number,
+)
+
+MAX_LR = 1.0
+"""The largest learning rate accepted: Adam moves each weight by about the rate per step, so a rate above 1 only
+ever diverges (the experiments use 1e-5 to 1e-3)."""
 
 RUNTIME = {"runtime": True}
 """Field metadata marking settings that may change when a run is resumed (they do not alter its results)."""
@@ -126,7 +139,7 @@ class DQNConfig:
     past it, while the world goes on (the released factory script's end_on_task_completion)."""
 
     def __post_init__(self) -> None:
-        check_number("lr", self.lr, 0.0, low_open=True)
+        check_number("lr", self.lr, 0.0, MAX_LR, low_open=True)
         check_number("adam_eps", self.adam_eps, 0.0, low_open=True)
         check_number("gamma", self.gamma, 0.0, 1.0)
         check_int("batch_size", self.batch_size)
@@ -166,7 +179,7 @@ class RNDConfig:
 
     def __post_init__(self) -> None:
         check_number("rnd_weight", self.rnd_weight, 0.0)
-        check_number("rnd_lr", self.rnd_lr, 0.0, low_open=True)
+        check_number("rnd_lr", self.rnd_lr, 0.0, MAX_LR, low_open=True)
         check_layers("rnd_layers", self.rnd_layers)
 
 
@@ -193,9 +206,9 @@ class EvalConfig:
         check_int("eval_every", self.eval_every)
         check_number("eval_epsilon", self.eval_epsilon, 0.0, 1.0)
         check_number("eval_dynamism", self.eval_dynamism, 0.0, 1.0)
-        for name in ("eval_rollouts", "eval_horizon"):
+        for name, high in (("eval_rollouts", MAX_EVAL_ROLLOUTS), ("eval_horizon", MAX_EVAL_HORIZON)):
             if getattr(self, name) is not None:
-                check_int(name, getattr(self, name))
+                check_int(name, getattr(self, name), high=high)
         check_kwargs("eval_env_kwargs", self.eval_env_kwargs, EVAL_OWNED_ENV_KWARGS)
 
 
@@ -230,8 +243,8 @@ class RunConfig:
         check_int("first_seed", self.first_seed, 0)
         check_int("steps", self.steps)
         check_int("checkpoint_every", self.checkpoint_every)
-        check_int("threads", self.threads)
-        check_int("env_threads", self.env_threads)
+        check_int("threads", self.threads, high=MAX_THREADS)
+        check_int("env_threads", self.env_threads, high=MAX_THREADS)
         if not isinstance(self.device, str) or not re.fullmatch(r"cpu|cuda(:[0-9]+)?", self.device):
             raise ValueError(f"device must be cpu, cuda or cuda:N, got {self.device!r}")
         if self.first_seed + self.seeds > VALIDATION_SEED_BASE:

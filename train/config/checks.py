@@ -7,7 +7,8 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["MAX_INT", "check_choices", "check_int", "check_kwargs", "check_layers", "check_number"]
+__all__ = ["MAX_EVAL_HORIZON", "MAX_EVAL_ROLLOUTS", "MAX_INT", "MAX_THREADS", "check_choices", "check_int",
+           "check_kwargs", "check_layers", "check_number"]
 
 
 def check_number(name: str, value: Any, low: float | None = None, high: float | None = None,
@@ -23,14 +24,21 @@ def check_number(name: str, value: Any, low: float | None = None, high: float | 
 
 MAX_INT = 2**53
 """Largest integer setting (beyond it no count fits the engine's 64-bit counters with room to grow)."""
+MAX_EVAL_HORIZON = 100_000
+"""Longest validation rollout: 100 times the longest test horizon (the food collector's 1 000 decisions); a file
+that asks for more would make an evaluation or a resume run for days."""
+MAX_EVAL_ROLLOUTS = 10_000
+"""Most validation rollouts per seed (100 times the protocol's 100 layouts)."""
+MAX_THREADS = 256
+"""Most threads a run may ask for (torch's and the grid stepper's); more than a machine has only slows it."""
 
 
-def check_int(name: str, value: Any, low: int = 1) -> None:
-    """Raise ValueError unless ``value`` is an integer in [``low``, `MAX_INT`]."""
+def check_int(name: str, value: Any, low: int = 1, high: int = MAX_INT) -> None:
+    """Raise ValueError unless ``value`` is an integer in [``low``, ``high``] (default: `MAX_INT`)."""
     if isinstance(value, bool) or not isinstance(value, int) or value < low:
         raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
-    if value > MAX_INT:
-        raise ValueError(f"{name} must be at most {MAX_INT}, got {value!r}")
+    if value > high:
+        raise ValueError(f"{name} must be at most {high:,}, got {value!r}")
 
 
 def check_layers(name: str, value: Any, allow_empty: bool = False) -> None:
