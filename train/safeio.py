@@ -7,6 +7,8 @@
 * `read_npy`: an ``.npy`` array whose header is checked (shape, dtype, size against a limit) before any
   memory is allocated for it.
 * `real_dir`: a directory ecorl writes into must be a directory, not a symbolic link to one elsewhere.
+* `regular_file` and `no_link_below`: a file handed to a library that opens it by name must be a regular file
+  (not a FIFO, which would block it), reached through no link inside the tree ecorl was given.
 
 Every refusal is an `UnsafeFileError` (a ValueError) whose message names the path and what to do.
 """
@@ -62,6 +64,32 @@ def open_regular(path: str | Path) -> BinaryIO:
                               f"files: move it away or replace it with the file ecorl wrote")
     fcntl.fcntl(fd, fcntl.F_SETFL, fcntl.fcntl(fd, fcntl.F_GETFL) & ~os.O_NONBLOCK)
     return os.fdopen(fd, "rb")
+
+
+def regular_file(path: str | Path) -> Path:
+    """``path`` if it is a regular file itself (not a symbolic link, FIFO, device or directory), for readers that
+    open files by name (OpenCV's video decoder); else `UnsafeFileError`. A FIFO would block such a reader forever.
+    """
+    path = Path(path)
+    mode = os.lstat(path).st_mode
+    if not stat.S_ISREG(mode):
+        raise UnsafeFileError(f"{path} is {_kind(mode)}, not a regular file; ecorl reads only regular files: move "
+                              f"it away or replace it with the file ecorl wrote")
+    return path
+
+
+def no_link_below(root: str | Path, path: str | Path) -> Path:
+    """``path`` if no component of it below ``root`` (``root`` itself excepted) is a symbolic link; else
+    `UnsafeFileError`: a link inside a tree ecorl was handed could lead its reads or writes anywhere.
+    """
+    root, path = Path(root), Path(path)
+    current = root
+    for part in path.relative_to(root).parts:
+        current = current / part
+        if current.is_symlink():
+            raise UnsafeFileError(f"{current} is a symbolic link inside {root}; ecorl follows no link inside a results "
+                                  f"tree: replace it with the directory or file itself")
+    return path
 
 
 def read_bytes(path: str | Path, limit: int = MAX_TEXT_BYTES) -> bytes:

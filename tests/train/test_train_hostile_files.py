@@ -357,3 +357,25 @@ def test_sizes_a_file_sets_are_capped_before_use(tmp_path, capsys):
         assert cli.main(["evaluate", str(path), "--rollouts", "1"]) == 2
         err = capsys.readouterr().err.strip()
         assert f"{key} must be at most" in err and len(err.splitlines()) == 1, err
+
+
+def test_no_write_follows_a_link_inside_the_tree_it_was_handed(tmp_path):
+    from train.experiments.catalog import get_experiment
+    from train.experiments.report import make_report
+    from train.experiments.sweep import plan
+    from train.safeio import UnsafeFileError, no_link_below
+
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    results = tmp_path / "results" / "headline"
+    results.mkdir(parents=True)
+    (results / "salad").symlink_to(elsewhere, target_is_directory=True)  # a task folder that leads out
+    with pytest.raises(UnsafeFileError, match="salad is a symbolic link inside"):
+        plan(get_experiment("headline"), "smoke", tmp_path / "results", ["salad"])
+    run = tmp_path / "run"
+    main(["train", "salad", "--steps", "400", *TINY, "--out", str(run)])
+    (run / "report").symlink_to(elsewhere, target_is_directory=True)  # its report folder leads out
+    with pytest.raises(UnsafeFileError, match="report is a symbolic link inside"):
+        make_report(run, videos=False)
+    assert not list(elsewhere.iterdir())
+    assert no_link_below(tmp_path, tmp_path / "run" / "metrics.csv") == tmp_path / "run" / "metrics.csv"

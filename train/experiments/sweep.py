@@ -35,7 +35,7 @@ from train.experiments.executors import run_local, run_ray
 from train.experiments.jobs import Job, JobResult, Pack, job_is_done
 from train.fileio import atomic_text
 from train.rundir import EXPERIMENT_FILE
-from train.safeio import load_json, real_dir
+from train.safeio import load_json, no_link_below, real_dir
 
 EXPERIMENT_LOCK = ".experiment.lock"
 """Lock file serialising updates of experiment.json by concurrent ``ecorl run`` processes."""
@@ -59,7 +59,7 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
     jobs = []
     for task in experiment.select_tasks(tasks):
         for cond in experiment.select_conditions(task, conditions):
-            run_dir = str(root / task / cond.name)
+            run_dir = str(no_link_below(root.parent, root / task / cond.name))  # a linked folder would train elsewhere
             n_steps = budget.steps_for(task)
             if cond.measure:
                 config = {"measure": cond.measure, "task": task, "seeds": budget.seeds, "steps": n_steps}

@@ -6,7 +6,8 @@ The policy is one seed's network from a run directory, its ``checkpoint.npz``, o
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import itertools
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,17 +23,21 @@ H264_OPTIONS = ("-f", "mp4", "-threads", "1", "-movflags", "+faststart", "-map_m
 give the same bytes; faststart so that a browser plays it before the whole file is loaded."""
 
 
-def write_h264(frames: Sequence[np.ndarray], path: str | Path, fps: float = 8.0) -> Path:
-    """Write RGB uint8 frames as an H.264 MP4 (yuv420p: it plays in every browser) at ``path``, atomically.
+def write_h264(frames: Iterable[np.ndarray], path: str | Path, fps: float = 8.0) -> Path:
+    """Write RGB uint8 frames (a sequence, or an iterable read one at a time) as an H.264 MP4 (yuv420p: it plays in
+    every browser) at ``path``, atomically.
 
     Uses the ffmpeg binary that the ``imageio-ffmpeg`` package ships; odd frame sizes are padded by one black
     row or column (H.264 in yuv420p needs even sizes).
     """
     import imageio_ffmpeg
 
-    if not len(frames):
+    frames = iter(frames)
+    first = next(frames, None)
+    if first is None:
         raise ValueError(f"no frames to write to {path}")
-    h, w = frames[0].shape[:2]
+    frames = itertools.chain([first], frames)
+    h, w = np.asarray(first).shape[:2]
     ph, pw = h + h % 2, w + w % 2
     with atomic_path(path) as tmp:
         writer = imageio_ffmpeg.write_frames(str(tmp), (pw, ph), fps=float(fps), codec="libx264",

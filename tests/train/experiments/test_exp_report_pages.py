@@ -202,3 +202,34 @@ def test_the_end_of_run_summary_names_the_task_when_a_folder_holds_several():
     assert sum(line.startswith("  factory, static, non-episodic: ") for line in several) == 1
     assert [line for line in one if line.startswith("  ")]
     assert not any(line.startswith("  salad, ") for line in one)
+
+
+def test_a_report_neither_hangs_on_a_fifo_nor_leaks_a_linked_strip_nor_decodes_huge_frames(tmp_path, capsys):
+    import os
+
+    import numpy as np
+
+    from train.experiments.report.webvideo import find_videos, web_copy
+    from train.experiments.video import write_h264
+
+    tree = tmp_path / "tree"
+    run = tree / "exp" / "salad" / "run"
+    run.mkdir(parents=True)
+    write_h264([np.full((40, 40, 3), i, np.uint8) for i in range(10)], run / "video.mp4")
+    secret = tmp_path / "secret.txt"
+    secret.write_text("not for the report")
+    (run / "filmstrip.png").symlink_to(secret)  # planted beside a real film
+    os.mkfifo(tree / "exp" / "hang.mp4")  # OpenCV would block on it forever
+    (tree / "linked").symlink_to(run, target_is_directory=True)  # not descended into
+    (tree / "exp" / "alias.mp4").symlink_to(secret)  # a video that is a link to any file
+    found = find_videos(tree)
+    assert found == [run / "video.mp4"]  # the FIFO, the link and what lies behind the linked folder are skipped
+    err = capsys.readouterr().err
+    assert "hang.mp4 is a FIFO" in err and "alias.mp4 is a symbolic link" in err
+    web = web_copy(found[0], tmp_path / "out", "v", "caption", found[0])
+    assert web is not None and web.strip is None and not list((tmp_path / "out").glob("*strip*"))
+    assert "filmstrip.png is a symbolic link" in capsys.readouterr().err
+    big = tmp_path / "big.mp4"
+    write_h264([np.zeros((1400, 60, 3), np.uint8)] * 2, big)
+    with pytest.raises(ValueError, match="more than ecorl's films"):
+        web_copy(big, tmp_path / "out", "b", "caption")

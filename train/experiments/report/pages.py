@@ -18,6 +18,7 @@ and writes into DIR:
 from __future__ import annotations
 
 import html
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -55,6 +56,7 @@ from train.experiments.report.tables import (
 from train.experiments.report.webvideo import WebVideo, caption_of, find_videos, render_missing_videos, web_copy
 from train.fileio import atomic_text
 from train.rundir import EXPERIMENT_FILE
+from train.safeio import no_link_below
 
 
 @dataclass
@@ -105,7 +107,7 @@ def build_sections(source: Path, out: Path, videos: bool | None = None) -> list[
     for exp, stem in zip(experiments, figure_stems(experiments), strict=True):
         paper = paper_all.get(exp.name, {})
         if videos or (videos is None and exp.info.get("videos")):
-            render_missing_videos(exp)
+            render_missing_videos(exp, source)
         figures = out / "figures"
         single = exp.info.get("budget") == "ecorl train"
         reference = None if single else load_reference(exp)
@@ -286,8 +288,12 @@ def web_videos(source: Path, out: Path, sections: Sequence[Section]) -> list[Web
             continue
         owner = next((s.exp.path for s in sections if s.exp.path in video.parents), None)
         name = "_".join(video.relative_to(source).with_suffix("").parts)
-        web = web_copy(video, out / "figures" / "videos", name,
-                       caption_of(video, owner.parent if owner else source), video)
+        try:
+            web = web_copy(video, out / "figures" / "videos", name,
+                           caption_of(video, owner.parent if owner else source), video)
+        except (ValueError, OSError) as err:  # oversized frames, a file swapped for a FIFO: skipped, named
+            print(f"ecorl report: skipped a video: {err}", file=sys.stderr)
+            continue
         if web is not None:
             made.append(web)
     return made
@@ -318,7 +324,10 @@ def make_report(root: str | Path, videos: bool | None = None, out: str | Path | 
     source = Path(root).resolve()
     if not source.is_dir():
         raise FileNotFoundError(f"no results directory {root}")
-    target = Path(out if out is not None else default_out(source)).resolve()
+    target = Path(out).resolve() if out is not None else default_out(source)
+    if out is None and target.is_relative_to(source):  # the default inside the tree: no link may lead out of it
+        no_link_below(source, target)
+    target = target.resolve()
     for name in ("figures", "report.md", "index.html"):
         if (target / name).is_symlink():
             raise ReportError(f"{target / name} is a symbolic link; the report writes only inside {target}: remove it")

@@ -9,6 +9,7 @@ into the report's own ``figures/videos/`` beside a PNG of its middle frame, so t
 from __future__ import annotations
 
 import json
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +19,7 @@ import numpy as np
 from train.checkpoint import CHECKPOINT_NAME
 from train.experiments.report.runs import ExperimentResults, Run
 from train.fileio import atomic_text, atomic_write, is_temporary
-from train.safeio import load_json
+from train.safeio import UnsafeFileError, load_json, no_link_below, read_bytes, regular_file
 
 VIDEO_INFO = "video.json"
 """Sidecar of a filmed run's ``video.mp4``: the seed filmed and the episodes solved."""
@@ -56,9 +57,10 @@ def _first_seed(run_dir: Path) -> int:
         return 0
 
 
-def render_missing_videos(exp: ExperimentResults) -> list[Path]:
+def render_missing_videos(exp: ExperimentResults, root: Path | None = None) -> list[Path]:
     """Film the best seed of every finished run that has no ``video.mp4`` yet, from its checkpoint or, without
-    one, its exported best policy (``policies/best.npz``).
+    one, its exported best policy (``policies/best.npz``); a run reached through a symbolic link below ``root``
+    (the tree the report was given) is not filmed.
     """
     from train.policy import RUN_POLICIES_DIR
     from train.rundir import RunDirError
@@ -70,6 +72,7 @@ def render_missing_videos(exp: ExperimentResults) -> list[Path]:
         has_checkpoint = (run.path / CHECKPOINT_NAME).exists()
         if run.done and not target.exists() and (has_checkpoint or exported.is_file()):
             try:
+                no_link_below(root or exp.path, target)
                 made.append(film_best_seed(run, target, None if has_checkpoint else exported))
             except (RunDirError, ValueError, FileNotFoundError) as err:
                 print(f"ecorl report: no video of {run.path}: {err}", file=sys.stderr)
@@ -77,9 +80,18 @@ def render_missing_videos(exp: ExperimentResults) -> list[Path]:
 
 
 def find_videos(root: Path) -> list[Path]:
-    """Every MP4 below ``root`` (run directories and the top level) except the report's own copies, sorted."""
-    return sorted(p for p in root.rglob("*.mp4") if ".partial" not in p.name and not is_temporary(p.name)
-                  and "figures" not in p.relative_to(root).parts[:1])
+    """Every MP4 below ``root`` (run directories and the top level) except the report's own copies, sorted: only
+    regular files reached through no symbolic link (a link or a FIFO is named on stderr and skipped).
+    """
+    found = []
+    for path in sorted(root.rglob("*.mp4")):
+        if ".partial" in path.name or is_temporary(path.name) or "figures" in path.relative_to(root).parts[:1]:
+            continue
+        try:
+            found.append(regular_file(no_link_below(root, path)))
+        except (UnsafeFileError, OSError) as err:
+            print(f"ecorl report: skipped a video: {err}", file=sys.stderr)
+    return found
 
 
 @dataclass(frozen=True)
@@ -107,34 +119,64 @@ def caption_of(video: Path, root: Path) -> str:
     return f"{where}: seed {info['seed']} (the best), {info.get('summary', '')}".rstrip(", ")
 
 
+MAX_FRAMES_READ = 5_000
+"""Most frames of a video the report re-encodes (ecorl's films hold at most about 1 200)."""
+MAX_FRAME_SIDE = 1_280
+"""Largest frame height or width the report re-encodes (ecorl's frames are a few hundred pixels a side)."""
+
+
+def _frames(cap, path: Path, poster_at: int, kept: dict):
+    """The capture's frames as RGB arrays, one at a time (never all in memory), at most `MAX_FRAMES_READ`, each at
+    most `MAX_FRAME_SIDE` a side (else ValueError); frame ``poster_at`` (or the last before it) is kept in ``kept``.
+    """
+    for index in range(MAX_FRAMES_READ):
+        ok, frame = cap.read()
+        if not ok:
+            return
+        if max(frame.shape[:2]) > MAX_FRAME_SIDE:
+            raise ValueError(f"{path} has frames of {frame.shape[1]}x{frame.shape[0]} pixels, more than ecorl's "
+                             f"films ({MAX_FRAME_SIDE} a side)")
+        if index <= poster_at:
+            kept["poster"] = frame
+        yield frame[:, :, ::-1]
+
+
 def web_copy(video: Path, out_dir: Path, name: str, caption: str, source: Path | None = None) -> WebVideo | None:
-    """Re-encode ``video`` as ``out_dir/name.mp4`` (H.264) with ``name.png``, its middle frame; None if
-    the video cannot be read.
+    """Re-encode ``video`` as ``out_dir/name.mp4`` (H.264) with ``name.png``, its middle frame, streaming frame by
+    frame; None if the video cannot be read. ``video`` and its filmstrip must be regular files (`regular_file`).
     """
     import cv2
 
     from train.experiments.video import write_h264
 
+    regular_file(video)  # before OpenCV opens it by name: a FIFO would block it forever
     cap = cv2.VideoCapture(str(video))
+    kept: dict = {}
     try:
         fps = cap.get(cv2.CAP_PROP_FPS) or 8.0
-        frames = []
-        while True:
-            ok, frame = cap.read()
-            if not ok:
-                break
-            frames.append(frame[:, :, ::-1])
+        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        mp4 = write_h264(_frames(cap, video, min(count, MAX_FRAMES_READ) // 2, kept), out_dir / f"{name}.mp4",
+                         fps=fps)
+    except ValueError as err:
+        if "no frames" in str(err):
+            return None
+        raise
     finally:
         cap.release()
-    if not frames:
-        return None
-    mp4 = write_h264(frames, out_dir / f"{name}.mp4", fps=fps)
-    ok, png = cv2.imencode(".png", np.ascontiguousarray(frames[len(frames) // 2][:, :, ::-1]))
+    ok, png = cv2.imencode(".png", np.ascontiguousarray(kept["poster"]))
     if not ok:
         return None
     poster = atomic_write(out_dir / f"{name}.png", png.tobytes())
     source = source or video
     strip = source.with_name(STRIP_NAME) if source.name == "video.mp4" else None
-    if strip is not None and strip.is_file():
-        strip = atomic_write(out_dir / f"{name}-strip.png", strip.read_bytes())
-    return WebVideo(mp4, poster, caption, source, strip if strip is not None and strip.is_file() else None)
+    copied = None
+    if strip is not None and os.path.lexists(strip):
+        try:
+            copied = atomic_write(out_dir / f"{name}-strip.png", read_bytes(strip, MAX_STRIP_BYTES))
+        except (UnsafeFileError, OSError) as err:  # a link or a FIFO planted as the strip: its bytes stay out
+            print(f"ecorl report: skipped a filmstrip: {err}", file=sys.stderr)
+    return WebVideo(mp4, poster, caption, source, copied)
+
+
+MAX_STRIP_BYTES = 16 << 20
+"""Largest filmstrip PNG copied into a report (ecorl's are a few hundred kilobytes)."""
