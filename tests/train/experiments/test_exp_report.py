@@ -302,3 +302,22 @@ def test_a_task_that_pays_more_per_step_scales_the_divergence_bounds():
     loss, max_q = np.array([[5e3, 10.0]]), np.array([[1e4, 5e5]])
     assert blown(loss, max_q, 0.99).tolist() == [[True, True]]  # 200 / 0.01 = 20 000; loss above 1 000
     assert blown(loss, max_q, 0.99, reward_bound=10_100).tolist() == [[False, False]]  # 1 010 000; 2.55e6
+
+
+def test_a_planted_results_file_cannot_make_the_report_read_or_gather_without_bound(tmp_path, monkeypatch):
+    import train.experiments.report.stats as stats
+    from train.experiments.report.runs import MAX_SEEDS, ReportError, read_columns, trusted_info
+
+    wide = tmp_path / "metrics.csv"
+    wide.write_text("step,seed,success\n" + "".join(f"5000,{k},0.0\n" for k in range(MAX_SEEDS + 1)))
+    with pytest.raises(ReportError, match=f"holds {MAX_SEEDS + 1:,} seeds"):
+        read_columns(wide, ("success",))
+    (tmp_path / "exp").mkdir()
+    padding = "x" * (5 << 20)  # ecorl writes about 10 KB
+    (tmp_path / "exp" / EXPERIMENT_FILE).write_text('{"name": "headline", "tasks": {}, "pad": "' + padding + '"}')
+    with pytest.raises(ReportError, match="not valid JSON"):
+        trusted_info(tmp_path / "exp")
+    values = np.random.default_rng(0).random((9, 40))
+    whole = bootstrap_ci(values)
+    monkeypatch.setattr(stats, "BOOTSTRAP_BYTES", 3 * 2000 * 40 * 8)  # three rows at a time, then two, and so on
+    assert all(np.array_equal(a, b) for a, b in zip(whole, bootstrap_ci(values)))

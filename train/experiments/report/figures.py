@@ -22,6 +22,8 @@ from train.experiments.report.stats import CI_LEVEL, COLLAPSE_SHARE, bootstrap_c
 from train.fileio import atomic_file
 from train.rundir import read_visits
 
+MAX_SEED_LINES = 100
+"""Most seeds of a condition drawn as lines of their own (every seed enters the mean and its interval)."""
 HEATMAP_POINTS = 4
 """Points of training shown in each heat-map row (the paper's Fig. 9-10 show four)."""
 
@@ -178,7 +180,7 @@ def plot_collapse(exp: ExperimentResults, out: Path) -> Path | None:
         for run in runs:
             color = color_of[run.condition]
             mean, low, high = bootstrap_ci(np.nan_to_num(run.top_share, nan=0.0))
-            ax.plot(run.steps, run.top_share, color=color, lw=0.5, alpha=0.35)
+            ax.plot(run.steps, run.top_share[:, :MAX_SEED_LINES], color=color, lw=0.5, alpha=0.35)
             ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
             ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
         ax.axhline(COLLAPSE_SHARE, color="gray", ls="--", lw=1.0)
@@ -224,7 +226,7 @@ def _draw_run(ax, run: Run, color: str, paper: dict, reference: ExperimentResult
     value dotted; returns the mean's line and whether the paper's value was drawn.
     """
     mean, low, high = bootstrap_ci(run.values)
-    ax.plot(run.steps, run.values, color=color, lw=0.5, alpha=0.35)  # each seed: the bimodality
+    ax.plot(run.steps, run.values[:, :MAX_SEED_LINES], color=color, lw=0.5, alpha=0.35)  # each seed: bimodality
     (line,) = ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
     ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
     for old in (reference.runs if reference else []):

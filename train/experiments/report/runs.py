@@ -92,6 +92,14 @@ _DAMAGED = ("train that run again ('ecorl run ... --restart CONDITION', or 'ecor
             "move its directory out of the results")
 
 
+MAX_SEEDS = 1_024
+"""Most seeds of one run a report reads (ecorl trains at most a few hundred per condition, even on a GPU)."""
+MAX_EVALUATIONS = 100_000
+"""Most evaluations of one run a report reads (a 1.5 M-step run evaluated every 5 000 steps has 300)."""
+MAX_EXPERIMENT_BYTES = 4 << 20
+"""Largest experiment.json read (ecorl writes about 10 KB)."""
+
+
 def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
                  ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """(steps (E,), seeds (S,), one (E, S) array per column) of a metrics.csv; evaluations missing a seed are
@@ -117,6 +125,9 @@ def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
     if not by_step:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), [np.zeros((0, 0)) for _ in columns]
     seeds = sorted(set().union(*by_step.values()))
+    if len(seeds) > MAX_SEEDS or len(by_step) > MAX_EVALUATIONS:
+        raise ReportError(f"{path} holds {len(seeds):,} seeds and {len(by_step):,} evaluations; a report reads at "
+                          f"most {MAX_SEEDS:,} seeds and {MAX_EVALUATIONS:,} evaluations per run; {_DAMAGED}")
     steps = sorted(s for s, vals in by_step.items() if len(vals) == len(seeds))
     table = np.array([[by_step[s][k] for k in seeds] for s in steps], dtype=np.float64)
     table = table.reshape(len(steps), len(seeds), len(columns))
@@ -189,7 +200,7 @@ def trusted_info(path: Path) -> dict[str, Any]:
     text shown comes from the known experiment, not from the file.
     """
     try:
-        saved = load_json(path / EXPERIMENT_FILE)
+        saved = load_json(path / EXPERIMENT_FILE, MAX_EXPERIMENT_BYTES)
     except ValueError as err:
         raise ReportError(f"{path / EXPERIMENT_FILE} is not valid JSON ({err})") from None
     name = saved.get("name") if isinstance(saved, dict) else None

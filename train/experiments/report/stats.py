@@ -19,6 +19,9 @@ BOOTSTRAP_NOTE = (f"percentile bootstrap over seeds, {BOOTSTRAP_SAMPLES} resampl
 """How every interval is made, as the report states it."""
 
 
+BOOTSTRAP_BYTES = 256 << 20
+"""The most memory one bootstrap gathers at once; beyond it the resamples are taken a block of rows at a time."""
+
 LEARNED = 0.2
 """A seed 'learned' the task when it solves more than this fraction of the validation layouts (outcomes are
 bimodal: a seed finds the task or it does not)."""
@@ -102,9 +105,15 @@ def bootstrap_ci(values: np.ndarray, level: float = CI_LEVEL, samples: int = BOO
         return mean, mean.copy(), mean.copy()
     rng = np.random.default_rng(seed)
     idx = rng.integers(0, n, size=(samples, n))
-    boots = values[..., idx].mean(-1)  # (..., samples)
     tail = (1.0 - level) / 2.0 * 100.0
-    low, high = np.percentile(boots, [tail, 100.0 - tail], axis=-1)
+    if values.size * samples * 8 <= BOOTSTRAP_BYTES:  # every report of ecorl's own runs: one gather
+        low, high = np.percentile(values[..., idx].mean(-1), [tail, 100.0 - tail], axis=-1)
+        return mean, low, high
+    rows = values.reshape(-1, n)  # a planted file of many seeds or evaluations: a block of rows at a time
+    step = max(2, BOOTSTRAP_BYTES // (samples * n * 8))
+    starts = [s for s in range(0, rows.shape[0], step) if rows.shape[0] - s != 1 or s == 0]  # no block of one row
+    boots = np.concatenate([rows[a:b][:, idx].mean(-1) for a, b in zip(starts, [*starts[1:], rows.shape[0]])])
+    low, high = np.percentile(boots.reshape(*values.shape[:-1], samples), [tail, 100.0 - tail], axis=-1)
     return mean, low, high
 
 
