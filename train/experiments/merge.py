@@ -23,6 +23,8 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
+import shutil
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -36,7 +38,7 @@ from train.config import TrainConfig
 from train.experiments.jobs import DONE_FILE, read_done
 from train.fileio import atomic_text
 from train.policy import export_run_policies, load_run
-from train.rundir import EXPERIMENT_FILE, RunDir, RunDirError, read_visits, write_visits
+from train.rundir import EXPERIMENT_FILE, LOCK_NAME, METRIC_COLUMNS, RunDir, RunDirError, read_visits, write_visits
 from train.safeio import read_text
 
 SPLIT_SETTINGS = ("seeds", "first_seed")
@@ -63,26 +65,47 @@ def merge_seed_runs(parts: Sequence[str | Path], out: str | Path) -> Path:
     """Write into ``out`` (a new or empty directory) the run of all the seeds of ``parts``: finished runs
     (checkpoint at the last step) of one configuration but their seeds, which must follow one another without
     a gap. Returns ``out``; `ValueError` or `RunDirError` (naming the part and the fix) when they do not fit.
+
+    The merged run is built in a hidden folder beside ``out`` and moved into place whole, so an interrupted or
+    failed merge leaves ``out`` as it was (the hidden folder says what it is); its policies and done marker,
+    which name the run by where it lies, are written once it is in place, and a failure there removes it.
     """
     if len(parts) < 2:
         raise ValueError("name at least two run directories to merge (each trained some of the seeds)")
+    out = Path(out).resolve()
+    if out.is_symlink() or (out.exists() and (not out.is_dir() or any(out.iterdir()))):
+        raise RunDirError(f"{out} is not an empty directory; merge into a new --out (or empty this one first)")
     loaded = sorted((_read_part(Path(p)) for p in parts), key=lambda part: part.cfg.run.first_seed)
     _check_parts(loaded)
     cfg = loaded[0].cfg.replace(seeds=sum(part.cfg.run.seeds for part in loaded))
-    run = RunDir(out)
-    run.prepare(cfg, resume=False)  # refuses a directory that holds anything; writes config.json
+    out.parent.mkdir(parents=True, exist_ok=True)
+    building = out.parent / f".{out.name}.merging-{os.getpid()}"
+    shutil.rmtree(building, ignore_errors=True)
     try:
-        run.write_metrics(sorted((row for part in loaded for row in part.rows),
-                                 key=lambda row: (int(row["step"]), int(row["seed"]))))
-        _write_visits(run.path, loaded)
+        run = RunDir(building)
+        run.prepare(cfg, resume=False)  # writes config.json
+        try:
+            run.write_metrics(sorted((row for part in loaded for row in part.rows),
+                                     key=lambda row: (int(row["step"]), int(row["seed"]))))
+            _write_visits(run.path, loaded)
+        finally:
+            run.unlock()
+        (building / LOCK_NAME).unlink(missing_ok=True)
+        if out.exists():
+            out.rmdir()  # empty, checked above
+        os.rename(building, out)
+    finally:
+        shutil.rmtree(building, ignore_errors=True)
+    try:
         state = {"config": cfg.to_dict(), "step": loaded[0].step,
                  "agent": {"online": torch.cat([part.online for part in loaded])}}
-        _write_experiment_file(run.path, loaded[0].path)  # first: the policies name their run after it
-        export_run_policies(run.path, state)
-        _write_done(run.path, cfg, loaded)
-    finally:
-        run.unlock()
-    return run.path
+        _write_experiment_file(out, loaded[0].path)  # first: the policies name their run after it
+        export_run_policies(out, state)
+        _write_done(out, cfg, loaded)
+    except BaseException:
+        shutil.rmtree(out, ignore_errors=True)
+        raise
+    return out
 
 
 def _read_part(path: Path) -> _Part:
@@ -93,17 +116,35 @@ def _read_part(path: Path) -> _Part:
     if step < cfg.total_steps:
         raise RunDirError(f"{run_dir} stands at step {step:,} of {cfg.total_steps:,}: finish it first (resume it "
                           f"with the command that started it), then merge")
-    with io.StringIO(read_text(run_dir / "metrics.csv"), newline="") as f:
-        rows = list(csv.DictReader(f))
-    try:
-        seeds = {int(row["seed"]) for row in rows}
-    except (KeyError, TypeError, ValueError) as err:
-        raise RunDirError(f"{run_dir / 'metrics.csv'} is not an ecorl metrics file ({err})") from None
+    rows = _read_metric_rows(run_dir / "metrics.csv")
+    seeds = {int(row["seed"]) for row in rows}
     if not rows or not seeds <= set(cfg.run.seed_list):
         raise RunDirError(f"{run_dir / 'metrics.csv'} holds no evaluation of this run's seeds "
                           f"{cfg.run.seed_list}; restore it, or delete it and rebuild it with "
                           f"'ecorl train TASK --resume --out {run_dir}'")
     return _Part(run_dir, cfg, step, rows, state["agent"]["online"])
+
+
+def _read_metric_rows(path: Path) -> list[dict[str, str]]:
+    """The rows of a part's metrics.csv, each cell checked: known columns only, a number in every cell (step and
+    seed whole numbers of at most 2**53), no short row; else `RunDirError` naming the file and the line.
+    """
+    with io.StringIO(read_text(path), newline="") as f:
+        reader = csv.DictReader(f)
+        rows, header = list(reader), reader.fieldnames or []
+    unknown = sorted(set(header) - set(METRIC_COLUMNS))
+    if unknown or not {"step", "seed"} <= set(header):
+        raise RunDirError(f"{path} is not an ecorl metrics file (its columns {header[:6]}); restore the part's file")
+    for number, row in enumerate(rows, start=2):
+        try:
+            if None in row.values() or None in row:
+                raise ValueError("a short or long row")
+            values = {k: float(v) for k, v in row.items() if v != ""}
+            if not all(0 <= values[k] <= 2**53 and values[k] == int(values[k]) for k in ("step", "seed")):
+                raise ValueError("step and seed must be whole numbers from 0 to 2**53")
+        except (KeyError, ValueError) as err:
+            raise RunDirError(f"{path} line {number} is not a metrics row ({err}); restore the part's file") from None
+    return rows
 
 
 def _check_parts(parts: list[_Part]) -> None:
@@ -154,13 +195,22 @@ def _write_visits(out: Path, parts: list[_Part]) -> None:
 
 def _write_experiment_file(out: Path, part: Path) -> None:
     """Where the parts are conditions of an ``ecorl run`` experiment and ``out`` is the same condition's
-    directory in an experiment directory that has no experiment file yet, copy the parts' (so the report finds
-    the merged run).
+    directory in an experiment directory that has no experiment file yet, write the experiment's description
+    there (so the report finds the merged run): the known experiment's own (`trusted_info`), never the part's
+    bytes, and only for a task and condition it has.
     """
-    source, target = part.parent.parent / EXPERIMENT_FILE, out.parent.parent / EXPERIMENT_FILE
+    from train.experiments.report.runs import trusted_info
+
+    source, target = part.parent.parent, out.parent.parent / EXPERIMENT_FILE
     same_place = (out.name, out.parent.name) == (part.name, part.parent.name)
-    if same_place and source.is_file() and not target.exists():
-        atomic_text(target, read_text(source))
+    if not same_place or not (source / EXPERIMENT_FILE).is_file() or os.path.lexists(target):
+        return
+    info = trusted_info(source)
+    conditions = [c.get("name") for c in info.get("tasks", {}).get(part.parent.name, [])]
+    if part.name not in conditions:
+        raise RunDirError(f"{source / EXPERIMENT_FILE} does not list {part.parent.name}/{part.name}, the part's own "
+                          f"condition; restore it or merge into a --out outside an experiment directory")
+    atomic_text(target, json.dumps(info, indent=2) + "\n")
 
 
 def _write_done(out: Path, cfg: TrainConfig, parts: list[_Part]) -> None:

@@ -79,7 +79,7 @@ def test_parts_that_are_not_one_runs_seeds_are_refused(trained, tmp_path):
     with pytest.raises(ValueError, match="drop --first-seed"):  # a measurement has no training seeds to split
         plan(get_experiment("measure"), "smoke", tmp_path, first_seed=1)
     merge_seed_runs([a, b], tmp_path / "merged")
-    with pytest.raises(RunDirError, match="not empty"):
+    with pytest.raises(RunDirError, match="is not an empty directory; merge into a new --out"):
         merge_seed_runs([a, b], tmp_path / "merged")
 
 
@@ -99,3 +99,30 @@ def test_the_command_merges_and_names_a_part_trained_otherwise(trained, tmp_path
                  "--out", str(tmp_path / "mixed")]) != 0
     err = capsys.readouterr().err
     assert "other settings" in err and "reset_free" in err
+
+
+def test_a_failed_merge_leaves_nothing_behind_and_a_planted_part_file_is_refused(trained, tmp_path, monkeypatch):
+    import shutil
+
+    import train.experiments.merge as merge
+
+    first, second = trained / "part-a" / CONDITION, trained / "part-b" / CONDITION
+    out = tmp_path / "results" / CONDITION
+
+    def fail(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(merge, "export_run_policies", fail)
+    with pytest.raises(OSError, match="disk full"):
+        merge_seed_runs([first, second], out)
+    assert not out.exists() and not list(out.parent.glob(".*merging*"))  # no half-written run, no leftovers
+    monkeypatch.undo()
+    copied = tmp_path / "bad" / CONDITION
+    shutil.copytree(second, copied)
+    lines = (copied / "metrics.csv").read_text().splitlines()
+    cells = lines[1].split(",")
+    cells[2] = "<b>x</b>"  # a text cell where a number belongs
+    (copied / "metrics.csv").write_text("\n".join([lines[0], ",".join(cells), *lines[2:]]) + "\n")
+    with pytest.raises(RunDirError, match="line 2 is not a metrics row"):
+        merge_seed_runs([first, copied], tmp_path / "other")
+    assert not (tmp_path / "other").exists()
