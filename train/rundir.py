@@ -221,9 +221,15 @@ def write_visits(path: Path, visits: np.ndarray) -> None:
 
 
 def read_visits(path: Path) -> np.ndarray:
-    """Read one visitation array: a regular file, its header and size checked before its data is read."""
+    """Read one visitation array: a regular file, its header and size checked before its data is read, and the
+    array itself counts (integers, seeds x rows x columns), else `UnsafeFileError`.
+    """
     with open_regular(path) as f:
-        return read_npy(f, MAX_VISITS_BYTES, str(path))
+        visits = read_npy(f, MAX_VISITS_BYTES, str(path))
+    if visits.dtype.kind not in "iu" or visits.ndim != 3:
+        raise UnsafeFileError(f"{path} holds {visits.dtype} {visits.shape}, not visitation counts (integers, seeds x "
+                              f"rows x columns); restore the file ecorl wrote or delete it")
+    return visits
 
 
 def check_same_run(saved: TrainConfig, requested: TrainConfig, where: Path) -> None:

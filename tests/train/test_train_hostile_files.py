@@ -379,3 +379,35 @@ def test_no_write_follows_a_link_inside_the_tree_it_was_handed(tmp_path):
         make_report(run, videos=False)
     assert not list(elsewhere.iterdir())
     assert no_link_below(tmp_path, tmp_path / "run" / "metrics.csv") == tmp_path / "run" / "metrics.csv"
+
+
+def test_four_inputs_that_raised_tracebacks_are_one_line_answers(tmp_path, capsys, monkeypatch):
+    from train import cli
+    from train.experiments.report.runs import ReportError, read_columns
+    from train.policy import Policy
+    from train.rundir import read_visits
+    from train.safeio import UnsafeFileError
+
+    metrics = tmp_path / "metrics.csv"  # a step beyond any counter: was OverflowError
+    metrics.write_text(f"step,seed,success\n5000,0,0.1\n{2**63},1,0.0\n5000,1,0.2\n")
+    with pytest.raises(ReportError, match="line 3 is not a metrics row"):
+        read_columns(metrics, ("success",))
+    np.save(tmp_path / "visits.npy", np.array([[["a", "b"]]]))  # strings where counts belong
+    with pytest.raises(UnsafeFileError, match="not visitation counts"):
+        read_visits(tmp_path / "visits.npy")
+    run = tmp_path / "out" / "headline" / "salad" / "static-episodic"
+    run.mkdir(parents=True)
+    (run / "notes.txt").write_text("the user's")  # --restart never deletes what ecorl did not write
+    assert main(["run", "headline", "--budget", "smoke", "--task", "salad", "--condition", "static-episodic",
+                 "--out", str(tmp_path / "out"), "--restart", "static-episodic", "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert "holds files ecorl did not write (notes.txt)" in err and "Traceback" not in err
+    assert (run / "notes.txt").exists()
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Policy, "evaluate", interrupted)  # Ctrl-C during an evaluation
+    shipped = sorted((REPO / "assets" / "policies").glob("*.npz"))[0]
+    assert cli.main(["evaluate", str(shipped), "--rollouts", "1"]) == 130
+    assert capsys.readouterr().err.strip() == "ecorl evaluate: interrupted"

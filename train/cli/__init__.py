@@ -56,6 +56,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UserError as err:
         print(f"ecorl {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C where a command has no stop of its own (training checkpoints first)
+        print(f"ecorl {args.command}: interrupted", file=sys.stderr)
+        return 130
     except (OSError, MemoryError, *_file_errors()) as err:  # a file, a disk or a run directory, not a bug
         why = " ".join(str(err).split()) or type(err).__name__
         if isinstance(err, MemoryError):

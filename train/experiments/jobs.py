@@ -135,7 +135,7 @@ def _clear_unstarted(job: Job) -> None:
     (`FinishedWithoutCheckpoint`); files ecorl did not write are never touched.
     """
     from train.checkpoint import CHECKPOINT_NAME
-    from train.rundir import LOCK_NAME
+    from train.rundir import LOCK_NAME, RunDirError
 
     run_dir = Path(job.run_dir)
     if not run_dir.exists():
@@ -144,8 +144,8 @@ def _clear_unstarted(job: Job) -> None:
     names = {p.name for p in run_dir.iterdir()} - {LOCK_NAME}
     unknown = sorted(n for n in names - clear if not is_temporary(n) and n not in RESULT_FILES)
     if unknown:
-        raise RuntimeError(f"{run_dir} holds no checkpoint but other files ({', '.join(unknown)}); "
-                           f"move them away or choose another --out")
+        raise RunDirError(f"{run_dir} holds files ecorl did not write ({', '.join(unknown)}), which it never "
+                          f"deletes; move them away or choose another --out")
     results = sorted(n for n in names - clear if n in RESULT_FILES)
     if results:
         raise FinishedWithoutCheckpoint(

@@ -96,6 +96,8 @@ MAX_SEEDS = 1_024
 """Most seeds of one run a report reads (ecorl trains at most a few hundred per condition, even on a GPU)."""
 MAX_EVALUATIONS = 100_000
 """Most evaluations of one run a report reads (a 1.5 M-step run evaluated every 5 000 steps has 300)."""
+MAX_STEP = 2**53
+"""Largest step or seed number a metrics.csv may hold (ecorl's configs stop there)."""
 MAX_EXPERIMENT_BYTES = 4 << 20
 """Largest experiment.json read (ecorl writes about 10 KB)."""
 
@@ -116,7 +118,10 @@ def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
         try:
             if None in row.values():  # fewer cells than the header
                 raise ValueError("fewer cells than the header")
-            by_step.setdefault(int(row["step"]), {})[int(row["seed"])] = [
+            step, seed = int(row["step"]), int(row["seed"])
+            if not (0 <= step <= MAX_STEP and 0 <= seed <= MAX_STEP):
+                raise ValueError(f"step {step} or seed {seed} outside [0, {MAX_STEP}]")
+            by_step.setdefault(step, {})[seed] = [
                 float(v) if v not in (None, "") else missing for v in (row.get(c) for c in columns)]
         except ValueError as error:
             if number == len(rows) + 1:
