@@ -372,6 +372,11 @@ def test_no_write_follows_a_link_inside_the_tree_it_was_handed(tmp_path):
     (results / "salad").symlink_to(elsewhere, target_is_directory=True)  # a task folder that leads out
     with pytest.raises(UnsafeFileError, match="salad is a symbolic link inside"):
         plan(get_experiment("headline"), "smoke", tmp_path / "results", ["salad"])
+    (results / "salad").unlink()
+    (results / "salad" / "static-episodic").mkdir(parents=True)
+    (results / "salad" / "static-episodic" / "policies").symlink_to(elsewhere, target_is_directory=True)
+    with pytest.raises(UnsafeFileError, match="policies is a symbolic link inside"):  # before training, not after
+        plan(get_experiment("headline"), "smoke", tmp_path / "results", ["salad"])
     run = tmp_path / "run"
     main(["train", "salad", "--steps", "400", *TINY, "--out", str(run)])
     (run / "report").symlink_to(elsewhere, target_is_directory=True)  # its report folder leads out

@@ -59,7 +59,10 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
     jobs = []
     for task in experiment.select_tasks(tasks):
         for cond in experiment.select_conditions(task, conditions):
-            run_dir = str(no_link_below(root.parent, root / task / cond.name))  # a linked folder would train elsewhere
+            run_dir = root / task / cond.name
+            for inside in (run_dir, run_dir / "policies", run_dir / "visits"):  # refused now, not after training
+                no_link_below(root.parent, inside)  # a linked folder would send the run's files elsewhere
+            run_dir = str(run_dir)
             n_steps = budget.steps_for(task)
             if cond.measure:
                 config = {"measure": cond.measure, "task": task, "seeds": budget.seeds, "steps": n_steps}
