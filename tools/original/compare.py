@@ -23,6 +23,8 @@ MATCH = 2_500
 """The largest distance between a step asked for and the evaluation that stands for it."""
 BLOWN = 1e3
 """|Q| above which a seed's values count as blown up in the table."""
+Q = "max \\|Q\\|"
+"""How a cell names the largest |Q| (its bars escaped for a markdown table)."""
 COLLAPSE = 0.6
 """Top-action share above which a seed counts as collapsed (ecorl's COLLAPSE_SHARE)."""
 
@@ -62,7 +64,7 @@ def summary(seeds: dict[str, list[dict[str, float]]], step: int) -> str:
     q = [r["max_q"] for r in rows]
     finite = [v for v in q if math.isfinite(v)]
     parts = [f"n={len(rows)}", f"success {statistics.mean(success):.1%} [{min(success):.0%}, {max(success):.0%}]",
-             f"max|Q| {statistics.median(finite):.3g} [{min(finite):.3g}, {max(finite):.3g}]" if finite else "max|Q| —",
+             f"{Q} {statistics.median(finite):.3g} [{min(finite):.3g}, {max(finite):.3g}]" if finite else f"{Q} —",
              f"{sum(not (v <= BLOWN) for v in q)} above {BLOWN:g}"]
     if all("y_pred_max" in r for r in rows):
         parts.append(f"batch Q(s,a) max {statistics.median(r['y_pred_max'] for r in rows):.3g}")
