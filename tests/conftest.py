@@ -1,4 +1,6 @@
-"""Progress a person can read: every 30 s a line with the tests done, the failures so far and the time taken.
+"""Progress a person can read, and the slowest test files first.
+
+Every 30 s a line with the tests done, the failures so far and the time taken.
 
 pytest's own ``-q`` output is a line of dots per 72 tests; with ``-n`` workers (pytest-xdist) that is all it prints
 for minutes at a time. The line comes from the process that collects the reports, so it counts every worker's.
@@ -44,6 +46,28 @@ class Progress:
             reporter = self.config.pluginmanager.get_plugin("terminalreporter")
             if reporter is not None:  # on a line of its own, between two lines of dots
                 reporter.write(f"\n  ... {self.done}{total} tests done{failed}, {minutes} min {seconds:02d} s\n")
+
+
+SLOW_FILES = (
+    "tests/train/experiments/test_exp_smoke.py",  # trains every experiment at the smoke budget first
+    "tests/train/experiments/test_exp_interrupt.py",
+    "tests/train/test_train_hostile_files.py",
+    "tests/train/experiments/test_exp_ray.py",
+    "tests/benchmarks/test_gpu_run_script.py",
+    "tests/train/test_train_kill_writes.py",
+    "tests/train/test_train_resume.py",
+    "tests/train/experiments/test_exp_merge.py",
+    "tests/train/experiments/test_exp_report_pages.py",
+    "tests/train/test_train_hostile_checkpoint.py",
+)
+"""The test files that take longest, slowest first: they are handed out first, so that with one worker per core
+(``-n auto --dist loadfile``) the quick files fill the gaps instead of one long file running alone at the end."""
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Put the tests of `SLOW_FILES` first, in that order; every other test keeps its place after them."""
+    order = {name: rank for rank, name in enumerate(SLOW_FILES)}
+    items.sort(key=lambda item: order.get(item.nodeid.split("::")[0], len(order)))
 
 
 def pytest_configure(config: pytest.Config) -> None:
