@@ -173,7 +173,7 @@ def code_mask(*codes: int) -> int:
 
 
 MAX_COUNT = 2**62
-"""Largest step or event count a restored world may hold (the engine adds to them without overflow checks)."""
+"""Largest step or event count a world may hold (the engine adds to them without overflow checks)."""
 MAX_AGE = 2**30
 """Largest object age a restored world may hold (ages are 32-bit)."""
 
@@ -182,12 +182,14 @@ def _refuse(index: int, what: str) -> ValueError:
     return ValueError(f"world {index} of the saved state is impossible for this task: {what}")
 
 
-def check_worlds(worlds: np.ndarray, rules: np.ndarray) -> None:
+def check_worlds(worlds: np.ndarray, rules: np.ndarray, headroom: int = 0) -> None:
     """Raise ValueError (one line) unless every record of ``worlds`` is a state this task's engine can reach.
 
     The compiled kernels index arrays by these values without bounds checks, so a state read from a file
     must pass here before it is stepped: positions inside the wall ring, cell and inventory codes the
     task observes, the walls where the task's layout has them, counters and ages not negative, flags 0/1.
+    Step and event counters must leave ``headroom`` below `MAX_COUNT`: each grows by at most one per step, so
+    a caller that passes the steps a run may still take keeps every later state it saves acceptable too.
     """
     r = rules[0] if rules.ndim else rules
     n = int(r["n"])
@@ -201,7 +203,7 @@ def check_worlds(worlds: np.ndarray, rules: np.ndarray) -> None:
     carry_ok[Code.EMPTY] = True  # 0 = empty hands
     walls = np.asarray(r["layout"]) == Code.WALL
     for i, w in enumerate(worlds):
-        _check_one(i, w, r, n, cell_ok, carry_ok, walls)
+        _check_one(i, w, r, n, cell_ok, carry_ok, walls, MAX_COUNT - max(0, int(headroom)))
 
 
 def _inside(xy: np.ndarray, n: int) -> bool:
@@ -210,7 +212,7 @@ def _inside(xy: np.ndarray, n: int) -> bool:
 
 
 def _check_one(i: int, w: np.void, r: np.void, n: int, cell_ok: np.ndarray, carry_ok: np.ndarray,
-               walls: np.ndarray) -> None:
+               walls: np.ndarray, max_count: int) -> None:
     """`check_worlds` for world ``i``."""
     grid = w["grid"]
     bad = grid[~cell_ok[np.minimum(grid, NC - 1)] | (grid >= NC)]
@@ -228,7 +230,7 @@ def _check_one(i: int, w: np.void, r: np.void, n: int, cell_ok: np.ndarray, carr
         raise _refuse(i, f"inventory code {inventory} is not an object of this task that can be carried")
     for name in ("age", "carried_age", "episode_step", "lifetime_step", "pickups", "made", "completions",
                  "pred_age"):
-        high = MAX_AGE if name in ("age", "carried_age") else MAX_COUNT
+        high = MAX_AGE if name in ("age", "carried_age") else max_count
         if np.any(w[name] < 0) or np.any(w[name] > high):
             raise _refuse(i, f"{name} lies outside [0, {high}]")
     for name in ("needs_reset", "replay_layout", "stage_done"):

@@ -27,7 +27,7 @@ from train.config import TrainConfig
 from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
 from train.fileio import atomic_file
 from train.rundir import EXPERIMENT_FILE, RunDir, RunDirError
-from train.safeio import load_json, loads_json, open_regular, read_npy, read_text
+from train.safeio import load_json, loads_json, open_regular, read_npy, read_text, regular_file
 from train.statecheck import check_counter
 from train.tasks import get_task, probe
 
@@ -281,8 +281,9 @@ def load_policy(path: str | Path, seed_index: int = 0) -> Policy:
     """A policy file (``.npz``), or seed number ``seed_index`` of a run directory or checkpoint."""
     path = Path(path)
     if is_policy_file(path):
-        if not path.is_file():
+        if not path.exists() and not path.is_symlink():
             raise FileNotFoundError(f"no policy file at {path}")
+        regular_file(path)  # a FIFO, device or link: named as such in one line, never opened
         if seed_index:
             raise ValueError(f"{path} is a policy file, which holds one seed; the seed index {seed_index} (--agent) "
                              f"picks among a run's seeds: pass the run directory instead, or drop --agent")

@@ -19,7 +19,10 @@ import torch
 from train.tasks import env_state
 
 MAX_COUNTER = 2**62
-"""Largest step, epoch or count a checkpoint may hold."""
+"""Largest count a checkpoint may hold."""
+MAX_STEP = 2**54
+"""Largest step a checkpoint may hold: a run's budget is at most 2**53 steps (`train.config.checks.MAX_INT`),
+and a run stops within an epoch of it."""
 MAX_ROWS = 10_000_000
 """Most metric rows a checkpoint may hold."""
 REPLAY_FLAG_BITS = 0b11
@@ -141,6 +144,13 @@ def check_rows(rows: Any, columns: tuple[str, ...], optional: tuple[str, ...] = 
             raise ValueError(f"a metric row is not a mapping of {', '.join(columns)} to numbers")
 
 
+def steps_left(step: int) -> int:
+    """Most steps a run at ``step`` may still take: counters that grow once per step must leave this much room
+    below their maximum, so that every checkpoint the run writes later is accepted as well.
+    """
+    return max(0, MAX_STEP - int(step))
+
+
 def check_state(state: dict[str, Any], trainer: Any, part: int = 0) -> None:
     """Raise ValueError unless ``state`` (a checkpoint's tree) is one that part ``part`` of ``trainer`` may
     load, value by value.
@@ -150,9 +160,9 @@ def check_state(state: dict[str, Any], trainer: Any, part: int = 0) -> None:
     live = trainer.state_dict(part)
     piece = trainer.parts[part]
     cfg = piece.cfg
-    step = check_counter(state.get("step"), "step")
+    step = check_counter(state.get("step"), "step", 0, MAX_STEP)
     check_counter(state.get("epoch"), "epoch", 0, step)
-    check_counter(state.get("loss_count"), "loss_count")
+    check_counter(state.get("loss_count"), "loss_count", 0, MAX_COUNTER - steps_left(step))
     check_counter(state.get("last_checkpoint"), "last_checkpoint", -1, step)
     # a diverged seed's weights and optimiser moments may be NaN or infinite: they stay in its own row (every
     # update is per seed), so the run resumes and the other seeds train on

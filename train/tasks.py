@@ -174,8 +174,10 @@ def env_state(env: gym.vector.VectorEnv) -> dict[str, Any]:
     raise TypeError(f"{type(env).__name__} has no saveable state (batched grid worlds or get_state)")
 
 
-def restore_env_state(env: gym.vector.VectorEnv, state: dict[str, Any]) -> None:
-    """Put `env_state` output back into ``env`` (same task and number of worlds, already reset once)."""
+def restore_env_state(env: gym.vector.VectorEnv, state: dict[str, Any], headroom: int = 0) -> None:
+    """Put `env_state` output back into ``env`` (same task and number of worlds, already reset once); grid worlds'
+    counters must leave ``headroom`` (the steps the run may still take) below their maximum.
+    """
     kind = state.get("kind")
     if kind == "grid" and isinstance(env, gridtasks.GridTaskVectorEnv):
         worlds = env.worlds
@@ -186,7 +188,7 @@ def restore_env_state(env: gym.vector.VectorEnv, state: dict[str, Any]) -> None:
         for name in worlds.dtype.names:
             _check_like(saved[name], worlds[name], f"world field {name!r}")
             candidate[name] = saved[name]
-        gridtasks.check_worlds(candidate, env.rules)  # the compiled engine trusts every index it reads
+        gridtasks.check_worlds(candidate, env.rules, headroom)  # the compiled engine trusts every index it reads
         worlds[...] = candidate
         return
     if kind == "sync" and isinstance(env, gym.vector.SyncVectorEnv):

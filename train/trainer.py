@@ -32,7 +32,7 @@ from train.packing import check_device, check_packable
 from train.parts import Part
 from train.rundir import ADDED_COLUMNS, RunDir, RunDirError
 from train.runlog import RunLogger, postfix, progress_bar, stop_on_signal
-from train.statecheck import check_state
+from train.statecheck import check_state, steps_left
 from train.tasks import (
     EnvInfo,
     Task,
@@ -322,7 +322,7 @@ class Trainer:
             if part.run_dir is not None:
                 part.run_dir.save_checkpoint(state)
             if state["env"] is not None:
-                restore_env_state(part.env, state["env"])
+                restore_env_state(part.env, state["env"], steps_left(self.step))
 
     def state_dict(self, part: int = 0) -> dict[str, Any]:
         """Everything needed to continue one part's run exactly, as data: JSON values, arrays and tensors.
@@ -363,7 +363,7 @@ class Trainer:
         self.learner.load_state_dict(state, part.rows)
         if state["env"] is not None:
             part.env.reset(seed=part.seeds)  # a seeded reset, then every world is overwritten with its saved state
-            restore_env_state(part.env, state["env"])
+            restore_env_state(part.env, state["env"], steps_left(int(state["step"])))
         torch.set_rng_state(state["torch_rng"])
         self.step, self.epoch = int(state["step"]), int(state["epoch"])
         if state["obs"] is not None:

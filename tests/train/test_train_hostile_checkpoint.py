@@ -16,8 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gridtasks.records import MAX_COUNT
 from train.checkpoint import read_checkpoint, write_checkpoint
 from train.cli import main
+from train.statecheck import steps_left
 
 REPO = Path(__file__).resolve().parents[2]
 FUZZ = Path(__file__).with_name("fuzz_checkpoint.py")
@@ -74,6 +76,8 @@ HOSTILE_WORLDS = {
     "inventory code 250": (_set("inventory", 250), "inventory code 250"),
     "a wall removed from the ring": (_set("grid", 0, (0, 0, 0)), "walls differ"),
     "negative lifetime clock": (_set("lifetime_step", -5), "lifetime_step lies outside"),
+    # accepted before, then the check of the run's own next checkpoint refused the clock it had stepped past it
+    "a clock at the largest count, no room to step": (_set("lifetime_step", MAX_COUNT), "lifetime_step lies outside"),
 }
 
 
@@ -92,6 +96,15 @@ def test_an_untouched_resigned_checkpoint_resumes(source, tmp_path):
     [result] = fuzz("resume", 600, run)
     assert result["rc"] == 0, result
     assert np.isfinite(read_checkpoint(run / "checkpoint.npz", keys=[])["step"])
+
+
+def test_a_clock_with_just_the_room_a_run_needs_resumes_and_resumes_again(source, tmp_path):
+    step = int(read_checkpoint(source / "checkpoint.npz", keys=[])["step"])
+    run = _crafted(source, tmp_path / "edge", _set("lifetime_step", MAX_COUNT - steps_left(step)))
+    for steps in (600, 800):
+        [result] = fuzz("resume", steps, run)
+        assert result["rc"] == 0, result
+    assert int(read_checkpoint(run / "checkpoint.npz", keys=[])["step"]) >= 800
 
 
 def test_mutating_any_field_gives_a_one_line_error_or_a_resume(source, tmp_path):

@@ -416,3 +416,18 @@ def test_four_inputs_that_raised_tracebacks_are_one_line_answers(tmp_path, capsy
     shipped = sorted((REPO / "assets" / "policies").glob("*.npz"))[0]
     assert cli.main(["evaluate", str(shipped), "--rollouts", "1"]) == 130
     assert capsys.readouterr().err.strip() == "ecorl evaluate: interrupted"
+
+
+def test_unclear_answers_now_name_the_file_and_what_it_is(tmp_path, capsys):
+    from train import cli
+    from train.experiments.report.runs import ReportError, _measurement_rows
+
+    table = tmp_path / "table.csv"  # was "invalid literal for int()", with no path
+    table.write_text("condition,mean,std,seeds,censored\nstatic,1.0,0.5,ten,0\n")
+    with pytest.raises(ReportError, match=r"table.csv line 2 is not a measurement row"):
+        _measurement_rows(table, "salad", "hitting-time")
+    fifo = tmp_path / "policy.npz"  # was "no policy file at ..."
+    os.mkfifo(fifo)
+    assert cli.main(["evaluate", str(fifo), "--rollouts", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "is a FIFO, not a regular file" in err and "\n" not in err

@@ -125,10 +125,24 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         print("some conditions hold results without a checkpoint and were kept as they are (see KEPT above); "
               "re-run with --restart CONDITION to train them again from scratch", file=sys.stderr)
         return 1
-    if counts.get("failed") or counts.get("interrupted"):
-        print("some runs did not finish; re-run the same command to retry/resume them", file=sys.stderr)
+    unfinished = [r for r in results if r.status in ("failed", "interrupted")]
+    if unfinished:
+        print(_unfinished_message(unfinished), file=sys.stderr)
         return 1
     return _finish(where, args.report)
+
+
+def _unfinished_message(unfinished: list) -> str:
+    """One line naming the runs this command did not finish and why, and what to do next."""
+    busy = [r.job for r in unfinished if r.status == "failed" and "in use by another ecorl process" in (r.error or "")]
+    stopped = [r.job for r in unfinished if r.status == "interrupted"]
+    broken = [r.job for r in unfinished if r.job not in busy and r.job not in stopped]
+    parts = [f"{len(broken)} failed ({', '.join(broken)}; see FAILED above)"] if broken else []
+    if stopped:
+        parts.append(f"{len(stopped)} stopped at a checkpoint ({', '.join(stopped)})")
+    if busy:
+        parts.append(f"{len(busy)} trained by another ecorl process ({', '.join(busy)}; it may finish them)")
+    return f"not finished by this command: {'; '.join(parts)}; re-run the same command to resume or check them"
 
 
 def _finish(where: Path, report: bool) -> int:

@@ -184,3 +184,18 @@ def test_run_condition_subset(capsys, tmp_path):
     with pytest.raises(SystemExit):
         cli.main(["run", "headline", "--condition", "dynamic", "--dry-run", "--out", str(tmp_path)])
     assert "its conditions are: static-episodic" in capsys.readouterr().err
+
+
+def test_an_unfinished_sweep_names_each_run_and_why():
+    from train.cli.run import _unfinished_message
+    from train.experiments.jobs import JobResult
+
+    message = _unfinished_message([
+        JobResult("salad/a", "failed", 1.0, "disk full"),
+        JobResult("salad/b", "interrupted"),
+        JobResult("salad/c", "failed", 1.0, "run x is in use by another ecorl process (pid 7); wait"),
+    ])
+    assert "\n" not in message
+    assert "1 failed (salad/a; see FAILED above)" in message
+    assert "1 stopped at a checkpoint (salad/b)" in message
+    assert "1 trained by another ecorl process (salad/c; it may finish them)" in message

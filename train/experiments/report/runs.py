@@ -230,6 +230,21 @@ def trusted_info(path: Path) -> dict[str, Any]:
     return info
 
 
+def _measurement_rows(table: Path, task: str, measure: str) -> list[dict]:
+    """The rows of a measurement's table.csv, or a one-line ReportError naming the file and the line."""
+    with io.StringIO(read_text(table), newline="") as f:
+        rows = list(csv.DictReader(f))
+    out = []
+    for number, row in enumerate(rows, start=2):
+        try:
+            out.append({"task": task, "measure": measure, "condition": str(row["condition"]),
+                        "mean": float(row["mean"]), "std": float(row["std"]), "seeds": int(row["seeds"]),
+                        "censored": int(row["censored"])})
+        except (KeyError, TypeError, ValueError) as error:
+            raise ReportError(f"{table} line {number} is not a measurement row ({error}); {_DAMAGED}") from None
+    return out
+
+
 def load_experiment(path: Path) -> ExperimentResults:
     """Read the runs (or measurements) of one experiment directory."""
     info = trusted_info(path)
@@ -239,13 +254,8 @@ def load_experiment(path: Path) -> ExperimentResults:
             run_dir = path / task / cond["name"]
             if cond.get("measure"):
                 table = run_dir / "table.csv"
-                if table.exists():
-                    with io.StringIO(read_text(table), newline="") as f:
-                        for row in csv.DictReader(f):
-                            result.measurements.append({
-                                "task": task, "measure": cond["measure"], "condition": row["condition"],
-                                "mean": float(row["mean"]), "std": float(row["std"]), "seeds": int(row["seeds"]),
-                                "censored": int(row["censored"])})
+                if table.exists() or table.is_symlink():
+                    result.measurements += _measurement_rows(table, task, cond["measure"])
                 continue
             run = read_run(run_dir, task, cond["name"], cond["label"]) if (run_dir / "metrics.csv").exists() else None
             if run is not None:
