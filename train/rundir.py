@@ -45,6 +45,10 @@ are absent in files written before them); ``made`` the share of validation rollo
 was made (factory: an axe, whatever the goal; NaN for the food collector; absent before it existed); ``return``
 is the mean validation return; ``train_reward`` the
 summed training reward since the previous evaluation; ``steps_per_s`` environment steps per second per seed."""
+MAX_METRIC_ROWS = 500_000
+"""Most rows of a metrics.csv that a report or a merge reads (330 seeds evaluated 300 times are 99 000)."""
+MAX_METRICS_BYTES = 64 << 20
+"""Largest metrics.csv that a report or a merge reads (ecorl's runs write under 1 MB)."""
 ADDED_COLUMNS = ("top_action", "top_action_share", "corner_share", "made")
 """The columns that files written before the collapse measurements lack (`METRIC_COLUMNS`); a checkpoint's rows
 without them still load (read as NaN)."""

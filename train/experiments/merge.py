@@ -38,7 +38,17 @@ from train.config import TrainConfig
 from train.experiments.jobs import DONE_FILE, read_done
 from train.fileio import atomic_text
 from train.policy import export_run_policies, load_run
-from train.rundir import EXPERIMENT_FILE, LOCK_NAME, METRIC_COLUMNS, RunDir, RunDirError, read_visits, write_visits
+from train.rundir import (
+    EXPERIMENT_FILE,
+    LOCK_NAME,
+    MAX_METRIC_ROWS,
+    MAX_METRICS_BYTES,
+    METRIC_COLUMNS,
+    RunDir,
+    RunDirError,
+    read_visits,
+    write_visits,
+)
 from train.safeio import read_text
 
 SPLIT_SETTINGS = ("seeds", "first_seed")
@@ -129,9 +139,14 @@ def _read_metric_rows(path: Path) -> list[dict[str, str]]:
     """The rows of a part's metrics.csv, each cell checked: known columns only, a number in every cell (step and
     seed whole numbers of at most 2**53), no short row; else `RunDirError` naming the file and the line.
     """
-    with io.StringIO(read_text(path), newline="") as f:
-        reader = csv.DictReader(f)
-        rows, header = list(reader), reader.fieldnames or []
+    reader = csv.DictReader(io.StringIO(read_text(path, MAX_METRICS_BYTES), newline=""))
+    header = reader.fieldnames or []
+    rows = []
+    for row in reader:
+        if reader.line_num > MAX_METRIC_ROWS:
+            raise RunDirError(f"{path} holds more than {MAX_METRIC_ROWS:,} rows, more than a run of ecorl writes; "
+                              f"restore the part's file")
+        rows.append(row)
     unknown = sorted(set(header) - set(METRIC_COLUMNS))
     if unknown or not {"step", "seed"} <= set(header):
         raise RunDirError(f"{path} is not an ecorl metrics file (its columns {header[:6]}); restore the part's file")

@@ -307,11 +307,24 @@ def test_a_task_that_pays_more_per_step_scales_the_divergence_bounds():
 def test_a_planted_results_file_cannot_make_the_report_read_or_gather_without_bound(tmp_path, monkeypatch):
     import train.experiments.report.stats as stats
     from train.experiments.report.runs import MAX_SEEDS, ReportError, read_columns, trusted_info
+    from train.rundir import MAX_METRIC_ROWS, MAX_METRICS_BYTES
+    from train.safeio import UnsafeFileError
 
     wide = tmp_path / "metrics.csv"
     wide.write_text("step,seed,success\n" + "".join(f"5000,{k},0.0\n" for k in range(MAX_SEEDS + 1)))
-    with pytest.raises(ReportError, match=f"holds {MAX_SEEDS + 1:,} seeds"):
+    with pytest.raises(ReportError, match=f"holds more than {MAX_SEEDS:,} seeds"):
         read_columns(wide, ("success",))
+    long = tmp_path / "long.csv"  # 1 000 seeds, 501 evaluations: refused at the row cap, before the rest is parsed
+    long.write_text("step,seed,success\n" + "".join(f"{5000 * (i // 1000)},{i % 1000},0.0\n"
+                                                   for i in range(MAX_METRIC_ROWS + 1000)))
+    with pytest.raises(ReportError, match=f"{MAX_METRIC_ROWS:,} rows"):
+        read_columns(long, ("success",))
+    huge = tmp_path / "huge.csv"
+    with open(huge, "w") as fh:
+        fh.write("step,seed,success\n")
+        fh.truncate(MAX_METRICS_BYTES + 1)
+    with pytest.raises(UnsafeFileError, match="larger than"):
+        read_columns(huge, ("success",))
     (tmp_path / "exp").mkdir()
     padding = "x" * (5 << 20)  # ecorl writes about 10 KB
     (tmp_path / "exp" / EXPERIMENT_FILE).write_text('{"name": "headline", "tasks": {}, "pad": "' + padding + '"}')

@@ -233,3 +233,19 @@ def test_a_report_neither_hangs_on_a_fifo_nor_leaks_a_linked_strip_nor_decodes_h
     write_h264([np.zeros((1400, 60, 3), np.uint8)] * 2, big)
     with pytest.raises(ValueError, match="more than ecorl's films"):
         web_copy(big, tmp_path / "out", "b", "caption")
+
+
+def test_a_long_video_is_refused_at_the_pixel_budget_not_re_encoded_for_minutes(tmp_path, monkeypatch):
+    import numpy as np
+
+    import train.experiments.report.webvideo as webvideo
+    from train.experiments.video import write_h264
+
+    long = tmp_path / "long.mp4"
+    write_h264([np.zeros((40, 40, 3), np.uint8)] * 30, long)
+    monkeypatch.setattr(webvideo, "MAX_PIXELS_READ", 20 * 40 * 40)  # stands for 400 million: 20 of these frames
+    with pytest.raises(ValueError, match="more than 32,000 pixels of frames .21 frames of 40x40"):
+        webvideo.web_copy(long, tmp_path / "out", "l", "caption")
+    assert not list((tmp_path / "out").glob("*.mp4"))  # no half-written copy
+    monkeypatch.setattr(webvideo, "MAX_PIXELS_READ", 30 * 40 * 40)
+    assert webvideo.web_copy(long, tmp_path / "out", "l", "caption") is not None

@@ -15,7 +15,7 @@ from train.config import TrainConfig
 from train.experiments.catalog import BUDGETS, EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
 from train.experiments.report.stats import REWARD_BOUND, blown, diverged
-from train.rundir import EXPERIMENT_FILE
+from train.rundir import EXPERIMENT_FILE, MAX_METRIC_ROWS, MAX_METRICS_BYTES
 from train.safeio import load_json, read_text
 
 REFERENCE_DIR = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
@@ -105,39 +105,51 @@ MAX_EXPERIMENT_BYTES = 4 << 20
 def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
                  ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """(steps (E,), seeds (S,), one (E, S) array per column) of a metrics.csv; evaluations missing a seed are
-    dropped, and a column a file lacks (or leaves empty) reads as ``missing``.
+    dropped, and a column a file lacks (or leaves empty) reads as ``missing``. Rows are read one at a time
+    and the file refused as soon as it passes `MAX_METRICS_BYTES`, `MAX_SEEDS` or `MAX_EVALUATIONS`, so a crafted
+    file costs a bounded amount of memory.
     """
     by_step: dict[int, dict[int, list[float]]] = {}
-    with io.StringIO(read_text(path), newline="") as f:  # a regular file only: no link, FIFO or device
-        reader = csv.DictReader(f)
-        rows, header = list(reader), reader.fieldnames or []
+    seeds: set[int] = set()
+    text = read_text(path, MAX_METRICS_BYTES)  # a regular file only: no link, FIFO or device
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    header = reader.fieldnames or []
     if header and not {"step", "seed"} <= set(header):
         raise ReportError(f"{path} is not an ecorl metrics file (its header {header[:4]} has no step and seed "
                           f"columns); {_DAMAGED}")
-    for number, row in enumerate(rows, start=2):
+    damaged = None  # (line, error) of a bad row: fine only if it is the last (a run interrupted mid-write)
+    for row in reader:
+        if damaged is not None:
+            raise ReportError(f"{path} line {damaged[0]} is not a metrics row ({damaged[1]}); {_DAMAGED}")
         try:
-            if None in row.values():  # fewer cells than the header
-                raise ValueError("fewer cells than the header")
-            step, seed = int(row["step"]), int(row["seed"])
-            if not (0 <= step <= MAX_STEP and 0 <= seed <= MAX_STEP):
-                raise ValueError(f"step {step} or seed {seed} outside [0, {MAX_STEP}]")
-            by_step.setdefault(step, {})[seed] = [
-                float(v) if v not in (None, "") else missing for v in (row.get(c) for c in columns)]
+            step, seed, values = _metrics_row(row, columns, missing)
         except ValueError as error:
-            if number == len(rows) + 1:
-                break  # the last line of a run interrupted while writing it
-            raise ReportError(f"{path} line {number} is not a metrics row ({error}); {_DAMAGED}") from None
+            damaged = (reader.line_num, error)
+            continue
+        by_step.setdefault(step, {})[seed] = values
+        seeds.add(seed)
+        if len(seeds) > MAX_SEEDS or len(by_step) > MAX_EVALUATIONS or reader.line_num > MAX_METRIC_ROWS:
+            raise ReportError(f"{path} holds more than {MAX_SEEDS:,} seeds, {MAX_EVALUATIONS:,} evaluations or "
+                              f"{MAX_METRIC_ROWS:,} rows, the most a report reads per run; {_DAMAGED}")
+    del text, reader
     if not by_step:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), [np.zeros((0, 0)) for _ in columns]
-    seeds = sorted(set().union(*by_step.values()))
-    if len(seeds) > MAX_SEEDS or len(by_step) > MAX_EVALUATIONS:
-        raise ReportError(f"{path} holds {len(seeds):,} seeds and {len(by_step):,} evaluations; a report reads at "
-                          f"most {MAX_SEEDS:,} seeds and {MAX_EVALUATIONS:,} evaluations per run; {_DAMAGED}")
-    steps = sorted(s for s, vals in by_step.items() if len(vals) == len(seeds))
-    table = np.array([[by_step[s][k] for k in seeds] for s in steps], dtype=np.float64)
-    table = table.reshape(len(steps), len(seeds), len(columns))
-    return (np.array(steps, dtype=np.int64), np.array(seeds, dtype=np.int64),
+    order = sorted(seeds)
+    steps = sorted(s for s, vals in by_step.items() if len(vals) == len(order))
+    table = np.array([[by_step[s][k] for k in order] for s in steps], dtype=np.float64)
+    table = table.reshape(len(steps), len(order), len(columns))
+    return (np.array(steps, dtype=np.int64), np.array(order, dtype=np.int64),
             [table[..., i] for i in range(len(columns))])
+
+
+def _metrics_row(row: dict, columns: tuple[str, ...], missing: float) -> tuple[int, int, list[float]]:
+    """(step, seed, the ``columns``' values) of one metrics.csv row, else ValueError."""
+    if None in row.values():  # fewer cells than the header
+        raise ValueError("fewer cells than the header")
+    step, seed = int(row["step"]), int(row["seed"])
+    if not (0 <= step <= MAX_STEP and 0 <= seed <= MAX_STEP):
+        raise ValueError(f"step {step} or seed {seed} outside [0, {MAX_STEP}]")
+    return step, seed, [float(v) if v not in (None, "") else missing for v in (row.get(c) for c in columns)]
 
 
 def read_metrics(path: Path, metric: str) -> tuple[np.ndarray, np.ndarray]:

@@ -126,12 +126,17 @@ MAX_FRAMES_READ = 5_000
 """Most frames of a video the report re-encodes (ecorl's films hold at most about 1 200)."""
 MAX_FRAME_SIDE = 1_280
 """Largest frame height or width the report re-encodes (ecorl's frames are a few hundred pixels a side)."""
+MAX_PIXELS_READ = 400_000_000
+"""Most pixels (frames x height x width) of one video the report re-encodes: decoding and encoding time grow
+with them (ecorl's longest film, the food collector's 1 001 frames of 512 x 512, holds 262 million)."""
 
 
 def _frames(cap, path: Path, poster_at: int, kept: dict):
     """The capture's frames as RGB arrays, one at a time (never all in memory), at most `MAX_FRAMES_READ`, each at
-    most `MAX_FRAME_SIDE` a side (else ValueError); frame ``poster_at`` (or the last before it) is kept in ``kept``.
+    most `MAX_FRAME_SIDE` a side, at most `MAX_PIXELS_READ` pixels in all (else ValueError); frame ``poster_at``
+    (or the last before it) is kept in ``kept``.
     """
+    pixels = 0
     for index in range(MAX_FRAMES_READ):
         ok, frame = cap.read()
         if not ok:
@@ -139,6 +144,10 @@ def _frames(cap, path: Path, poster_at: int, kept: dict):
         if max(frame.shape[:2]) > MAX_FRAME_SIDE:
             raise ValueError(f"{path} has frames of {frame.shape[1]}x{frame.shape[0]} pixels, more than ecorl's "
                              f"films ({MAX_FRAME_SIDE} a side)")
+        pixels += frame.shape[0] * frame.shape[1]
+        if pixels > MAX_PIXELS_READ:
+            raise ValueError(f"{path} holds more than {MAX_PIXELS_READ:,} pixels of frames ({index + 1} frames of "
+                             f"{frame.shape[1]}x{frame.shape[0]}), more than ecorl's films")
         if index <= poster_at:
             kept["poster"] = frame
         yield frame[:, :, ::-1]
