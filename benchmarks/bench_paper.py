@@ -50,18 +50,22 @@ class PaperPack:
 
     @property
     def k(self) -> int:
+        """Seeds trained together."""
         return sum(c.run.seeds for c in self.cfgs)
 
     @property
     def steps(self) -> int:
+        """Environment steps per seed (shared by a pack)."""
         return self.cfgs[0].total_steps
 
     @property
     def agent_steps(self) -> int:
+        """Seeds x steps."""
         return self.k * self.steps
 
     @property
     def evaluations(self) -> int:
+        """Evaluations at the pack's protocol."""
         return self.steps // self.cfgs[0].eval.eval_every
 
 
