@@ -10,6 +10,7 @@ from pathlib import Path
 
 from train.cli.common import DEFAULT_OUT, UserError, minutes, nonnegative, positive, relative, user_errors
 from train.experiments.catalog import BUDGETS, EXPERIMENTS, get_experiment
+from train.experiments.sweep import summarize
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -21,7 +22,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         description="Run every condition of a named experiment, one process per condition (its seeds trained "
                     "together), locally or on Ray. Runs go to OUT/EXPERIMENT/TASK/CONDITION/. Re-running the "
                     "same command skips finished runs and resumes interrupted ones.\n\nexperiments:\n" + listing)
-    parser.add_argument("experiment", nargs="?", metavar="EXPERIMENT", help="experiment name (see --list)")
+    parser.add_argument("experiment", nargs="*", metavar="EXPERIMENT",
+                        help="experiment name (see --list); several run as one sweep")
+    parser.add_argument("--all", action="store_true",
+                        help="every experiment that trains, as one sweep: a configuration several of them name is "
+                             "trained once and copied, and with --pack (or a GPU) a task's conditions share packs "
+                             "across experiments")
     parser.add_argument("--list", action="store_true", help="list the experiments and their budgets, then exit")
     parser.add_argument("--task", nargs="+", metavar="T", help="only these tasks of the experiment")
     parser.add_argument("--condition", nargs="+", metavar="C",
@@ -76,16 +82,19 @@ def _list_experiments() -> None:
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Plan the experiment's runs and execute those not done yet."""
-    from train.experiments.sweep import plan, print_plan, run_jobs, summarize, write_experiment_file
+    from train.experiments.sweep import plan, print_plan, run_jobs, write_experiment_file
 
     began = time.monotonic()
     if args.list:
         _list_experiments()
         return 0
-    if args.experiment is None:
-        parser.error("name an EXPERIMENT (or pass --list)")
+    names = [e.name for e in EXPERIMENTS.values() if not e.is_measurement] if args.all else args.experiment
+    if not names:
+        parser.error("name an EXPERIMENT (or pass --all, or --list)")
+    if len(names) > 1:
+        return _handle_many(args, parser, names)
     try:
-        exp = get_experiment(args.experiment)
+        exp = get_experiment(names[0])
         jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition, args.restart,
                     args.device, args.first_seed)
     except ValueError as err:
@@ -119,17 +128,76 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         print(f"interrupted: running conditions saved a checkpoint; re-run the same command to resume "
               f"({where})", file=sys.stderr)
         return 130
+    if not _all_finished(results):
+        return 1
+    return _finish(where, args.report)
+
+
+def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, names: list[str]) -> int:
+    """Several experiments as one sweep (`train.experiments.multi`)."""
+    from train.experiments.multi import fill_copies, plan_many, split_copies
+    from train.experiments.sweep import print_plan, run_jobs, write_experiment_file
+
+    for flag, value in (("--minutes", args.minutes), ("--restart", args.restart), ("--first-seed", args.first_seed)):
+        if value:
+            parser.error(f"{flag} applies to one experiment; run that experiment alone with {flag}")
+    try:
+        exps = [get_experiment(name) for name in dict.fromkeys(names)]
+        jobs = plan_many(exps, args.budget, args.out, args.task, args.condition, args.seeds, args.steps, args.device)
+    except ValueError as err:
+        parser.error(str(err))
+    if args.out.exists() and not args.out.is_dir():
+        raise UserError(f"--out {args.out} is a file, not a directory; choose a directory path")
+    if args.device is not None:
+        from train.packing import check_device
+
+        with user_errors(ValueError):
+            check_device(args.device)
+    train, copies = split_copies(jobs)
+    if args.dry_run:
+        print_plan(train)
+        for copy, original in copies:
+            print(f"[  copy] {copy.name}: the same run as {original.name}, copied when it finishes")
+        return 0
+    ran = sorted({job.experiment for job in jobs}, key=[e.name for e in exps].index)
+    with user_errors(ValueError, OSError):
+        for exp in exps:
+            if exp.name in ran:
+                write_experiment_file(exp, args.budget, [j for j in jobs if j.experiment == exp.name], args.out)
+    print(f"ecorl run {', '.join(ran)}: {len(train)} runs and {len(copies)} copies of them, budget {args.budget}, "
+          f"executor {args.executor}, results in {args.out}", file=sys.stderr)
+    try:
+        with user_errors(RuntimeError):
+            gpu = (args.device or "cpu").startswith("cuda")
+            pack = 1 if gpu else (args.jobs or os.cpu_count() or 1) if args.pack else 0
+            results = run_jobs(train, args.executor, args.jobs, args.address, args.progress, pack)
+    except KeyboardInterrupt:
+        print(f"interrupted: running conditions saved a checkpoint; re-run the same command to resume "
+              f"({args.out})", file=sys.stderr)
+        return 130
+    with user_errors(OSError):
+        for line in fill_copies(copies):
+            print(line, file=sys.stderr)
+    if not _all_finished(results):
+        return 1
+    for name in ran:
+        _finish(args.out / name, args.report)
+    return 0
+
+
+def _all_finished(results: list) -> bool:
+    """Print the count of runs by outcome and, unless all finished, what did not and what to do; True if all did."""
     counts = summarize(results)
     print("runs: " + ", ".join(f"{n} {status}" for status, n in sorted(counts.items())), file=sys.stderr)
     if counts.get("kept"):
         print("some conditions hold results without a checkpoint and were kept as they are (see KEPT above); "
               "re-run with --restart CONDITION to train them again from scratch", file=sys.stderr)
-        return 1
+        return False
     unfinished = [r for r in results if r.status in ("failed", "interrupted")]
     if unfinished:
         print(_unfinished_message(unfinished), file=sys.stderr)
-        return 1
-    return _finish(where, args.report)
+        return False
+    return True
 
 
 def _unfinished_message(unfinished: list) -> str:

@@ -64,6 +64,20 @@ def test_run_list_and_dry_run(capsys, tmp_path):
         cli.main(["run", "rnd", "--task", "salad"])
 
 
+def test_run_all_plans_every_training_experiment_and_each_copy_once(capsys, tmp_path):
+    assert cli.main(["run", "--all", "--budget", "paper", "--task", "salad", "--dry-run", "--out", str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    copies = [line for line in lines if line.startswith("[  copy]")]
+    assert "[  copy] dynamism-sweep/salad/p0: the same run as headline/salad/static-reset-free, copied when it " \
+           "finishes" in copies
+    trained = [line.split("]")[1].split(":")[0].strip() for line in lines if not line.startswith("[  copy]")]
+    assert len(trained) == len(set(trained)) and "headline/salad/static-reset-free" in trained
+    assert not any(name.startswith("measure/") for name in trained)  # Table 1 measures, it trains nothing
+    with pytest.raises(SystemExit):
+        cli.main(["run", "headline", "shaping", "--minutes", "5", "--out", str(tmp_path)])
+    assert "--minutes applies to one experiment" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("bad", ["-1", "0", "nan", "inf"])
 def test_run_refuses_a_time_budget_that_is_no_time(bad, capsys, tmp_path):
     with pytest.raises(SystemExit):
