@@ -5,7 +5,7 @@ packed per task, timed for a few epochs and projected.
     python benchmarks/bench_paper.py --device cuda                    # on a GPU: every pack at its full K
     python benchmarks/bench_paper.py --census                         # only count what the paper trains
 
-The census: every condition of every named experiment (`ecorl run --list`) at ``--budget paper``, each
+The census: what ``ecorl run --all --budget paper`` trains, every condition of every named experiment, each
 distinct configuration once (copies such as a sweep's p 0 and the headline's static run are the same config),
 grouped into the packs one process can train (`train.packing.group_packable`: conditions of a task that differ
 only in per-row settings). For each pack the benchmark builds the packed trainer (with a 20 000-slot replay, so
@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from train.config import TrainConfig  # noqa: E402
 from train.experiments.catalog import EXPERIMENTS  # noqa: E402
-from train.experiments.sweep import plan  # noqa: E402
+from train.experiments.multi import plan_many, split_copies  # noqa: E402
 from train.packing import group_packable  # noqa: E402
 from train.trainer import Trainer  # noqa: E402
 
@@ -70,18 +70,13 @@ class PaperPack:
 
 
 def census(device: str) -> list[PaperPack]:
-    """Every distinct training configuration of the paper's budget, grouped into packs per task."""
-    seen: dict[str, tuple[str, str, TrainConfig]] = {}
+    """What ``ecorl run --all --budget paper`` trains (each configuration once), grouped into packs per task."""
     with tempfile.TemporaryDirectory() as out:
-        for exp in EXPERIMENTS.values():
-            if exp.is_measurement:
-                continue
-            for job in plan(exp, "paper", out, device=device):
-                cfg = TrainConfig.from_dict(job.config)
-                seen.setdefault(repr(sorted(cfg.identity().items())), (job.task, job.name, cfg))  # runtime aside
+        experiments = [e for e in EXPERIMENTS.values() if not e.is_measurement]
+        train, _ = split_copies(plan_many(experiments, "paper", out, device=device))
     by_task: dict[str, list[tuple[str, TrainConfig]]] = {}
-    for task, name, cfg in seen.values():
-        by_task.setdefault(task, []).append((name, cfg))
+    for job in train:
+        by_task.setdefault(job.task, []).append((job.name, TrainConfig.from_dict(job.config)))
     packs = []
     for task, entries in by_task.items():
         for group in group_packable([cfg for _, cfg in entries]):
