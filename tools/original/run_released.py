@@ -21,9 +21,13 @@ from __future__ import annotations
 
 import argparse
 import ast
+import copyreg
 import csv
+import gzip
 import json
 import math
+import os
+import pickle
 import random
 import runpy
 import sys
@@ -58,6 +62,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--epochs", type=int, default=None,
                         help="stop after this many epochs (default: the script's num_epochs)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1, one core per seed)")
+    parser.add_argument("--checkpoint-every", type=int, default=100, metavar="EPOCHS",
+                        help="pickle the whole algorithm every this many epochs (0: never), so --resume continues")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue the run in --out from its checkpoint (same --checkout; rlkit's own logs of "
+                             "the continued part go to --out/resumed-EPOCH/)")
     return parser.parse_args(argv)
 
 
@@ -101,15 +110,24 @@ def parse_settings(pairs: list[str]) -> dict:
 class Recorder:
     """Measures validation and training without touching either, and writes ``metrics.csv``."""
 
-    def __init__(self, out: Path) -> None:
+    def __init__(self, out: Path, saved: dict | None = None) -> None:
         self.path = out / "metrics.csv"
         self.start = time.time()
         self.train_reward = 0.0
         self.train_solves = 0
         self.steps = 0
         self.collections = 0  # calls of add_paths: the warm-up, then one per epoch
-        with self.path.open("w", newline="") as f:
-            csv.writer(f).writerow(METRIC_FIELDS)
+        if saved is None:
+            with self.path.open("w", newline="") as f:
+                csv.writer(f).writerow(METRIC_FIELDS)
+        else:  # a resumed run: its counters, its clock going on from the seconds already spent
+            self.__dict__.update({k: v for k, v in saved.items() if k != "seconds"})
+            self.start = time.time() - saved["seconds"]
+
+    def state(self) -> dict:
+        """What a resumed run needs to go on counting."""
+        return {"train_reward": self.train_reward, "train_solves": self.train_solves, "steps": self.steps,
+                "collections": self.collections, "seconds": time.time() - self.start}
 
     def wrap_replay(self, buffer_class) -> None:
         """Count the reward, solves and steps of every path the trainer stores (the training data only)."""
@@ -177,38 +195,89 @@ class Recorder:
         self.train_reward, self.train_solves = 0.0, 0
 
 
-def save_networks(out: Path, every: int = 500) -> None:
-    """Keep the online Q-network's weights every ``every`` epochs and at the end (``qf_<epoch>.pt``)."""
+CHECKPOINT = "checkpoint.pkl.gz"
+"""The pickled algorithm (networks, optimiser, replay buffer, environments, collectors, exploration) and the
+random generators' states, written every ``--checkpoint-every`` epochs."""
+
+
+def _keys_view(keys: list):
+    return dict.fromkeys(keys).keys()
+
+
+def allow_pickling() -> None:
+    """The replay buffer keeps a ``dict_keys`` view, which pickle refuses: pickle it as the view of its keys."""
+    copyreg.pickle(type({}.keys()), lambda view: (_keys_view, (list(view),)))
+
+
+def save_checkpoint(out: Path, algorithm, epoch: int, recorder: Recorder) -> None:
+    """Pickle everything the run needs to go on after ``epoch``, atomically (a temporary file, then renamed)."""
+    import numpy as np
+    import torch
+
+    state = {"algorithm": algorithm, "epoch": epoch, "recorder": recorder.state(),
+             "rng": (random.getstate(), np.random.get_state(), torch.get_rng_state())}
+    partial = out / f"{CHECKPOINT}.partial"
+    with gzip.open(partial, "wb", compresslevel=1) as f:
+        pickle.dump(state, f, protocol=4)
+    os.replace(partial, out / CHECKPOINT)
+
+
+def load_checkpoint(out: Path) -> dict:
+    """The checkpoint of the run in ``out``, its random generators restored."""
+    import numpy as np
+    import torch
+
+    with gzip.open(out / CHECKPOINT, "rb") as f:
+        state = pickle.load(f)  # a file this runner wrote: pickle runs code, so resume only your own runs
+    python_rng, numpy_rng, torch_rng = state["rng"]
+    random.setstate(python_rng)
+    np.random.set_state(numpy_rng)
+    torch.set_rng_state(torch_rng)
+    return state
+
+
+def hook_epoch_end(out: Path, total: int, offset: int, checkpoint_every: int, recorder: Recorder,
+                   every: int = 500) -> None:
+    """After each epoch: the Q-network's weights every ``every`` epochs and at the end (``qf_<epoch>.pt``), and a
+    checkpoint every ``checkpoint_every``. A resumed loop counts its epochs from 0 again: ``offset`` (the epochs
+    done before) makes the numbers rlkit's validation and logs see the run's own.
+    """
     import torch
     from rlkit.core.rl_algorithm import BaseRLAlgorithm
 
     original = BaseRLAlgorithm._end_epoch
 
     def _end_epoch(self, epoch, *args, **kwargs):
+        epoch += offset
         original(self, epoch, *args, **kwargs)
-        last = epoch + 1 == getattr(self, "num_epochs", -1)
+        last = epoch + 1 == total
         if epoch % every == 0 or last:
             torch.save(self.trainer.qf.state_dict(), out / f"qf_{epoch}.pt")
+        if checkpoint_every and (epoch + 1) % checkpoint_every == 0 and not last:
+            save_checkpoint(out, self, epoch, recorder)
 
     BaseRLAlgorithm._end_epoch = _end_epoch
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Run one seed of one sweep point."""
+    """Run one seed of one sweep point, or continue one from its checkpoint."""
     args = parse_args(argv)
     script = args.checkout / SCRIPTS.get(args.script, args.script)
     if not script.is_file():
         raise SystemExit(f"no script {script}; name one of {', '.join(SCRIPTS)} or a path inside --checkout")
-    if args.out.exists() and any(args.out.iterdir()):
-        raise SystemExit(f"{args.out} is not empty; pass a new --out")
+    if args.resume and not (args.out / CHECKPOINT).is_file():
+        raise SystemExit(f"no {CHECKPOINT} in {args.out} to resume from; start the run without --resume")
+    if not args.resume and args.out.exists() and any(args.out.iterdir()):
+        raise SystemExit(f"{args.out} is not empty; pass a new --out, or --resume to continue its run")
     shims.install(args.checkout)
+    allow_pickling()
     import numpy as np
     import torch
 
     torch.set_num_threads(args.threads)
     function, variant, launch = pick(collect_sweep(script), parse_settings(args.set))
-    if args.epochs is not None:
-        variant["algo_kwargs"]["algorithm_kwargs"]["num_epochs"] = args.epochs
+    total = args.epochs or variant["algo_kwargs"]["algorithm_kwargs"]["num_epochs"]
+    variant["algo_kwargs"]["algorithm_kwargs"]["num_epochs"] = total
     args.out.mkdir(parents=True, exist_ok=True)
 
     from rlkit.core.rl_algorithm import BaseRLAlgorithm
@@ -216,21 +285,33 @@ def main(argv: list[str] | None = None) -> None:
     from rlkit.launchers.launcher_util import setup_logger
     from rlkit.torch.pytorch_util import set_gpu_mode
 
-    recorder = Recorder(args.out)
+    saved = load_checkpoint(args.out) if args.resume else None
+    recorder = Recorder(args.out, saved["recorder"] if saved else None)
     recorder.wrap_replay(ReplayBuffer)
     recorder.wrap_validation(BaseRLAlgorithm)
     variant["exp_id"], variant["seed"] = "0", str(args.seed)
-    setup_logger(exp_prefix=launch.get("exp_prefix", "released"), variant=variant, log_dir=str(args.out),
+    done = saved["epoch"] + 1 if saved else 0
+    log_dir = args.out / f"resumed-{done}" if saved else args.out  # rlkit's logger truncates its files
+    setup_logger(exp_prefix=launch.get("exp_prefix", "released"), variant=variant, log_dir=str(log_dir),
                  snapshot_mode="none")
-    random.seed(args.seed)
-    np.random.seed(args.seed)
-    torch.manual_seed(args.seed)
     set_gpu_mode(False)
-    (args.out / "command.json").write_text(json.dumps(
-        {"argv": sys.argv[1:], "script": SCRIPTS.get(args.script, args.script), "adjustments": shims.ADJUSTMENTS,
-         "torch": torch.__version__, "numpy": np.__version__}, indent=1) + "\n")
-    save_networks(args.out)
-    function(variant)
+    hook_epoch_end(args.out, total, done, args.checkpoint_every, recorder)
+    if saved is None:
+        random.seed(args.seed)
+        np.random.seed(args.seed)
+        torch.manual_seed(args.seed)
+        (args.out / "command.json").write_text(json.dumps(
+            {"argv": sys.argv[1:], "script": SCRIPTS.get(args.script, args.script), "adjustments": shims.ADJUSTMENTS,
+             "torch": torch.__version__, "numpy": np.__version__}, indent=1) + "\n")
+        function(variant)
+    else:
+        algorithm = saved["algorithm"]
+        algorithm.num_epochs = total - done  # the release's loop counts its epochs from 0 again
+        algorithm.min_num_steps_before_training = 0  # its warm-up is in the replay buffer already
+        with (args.out / "resumes.jsonl").open("a") as f:
+            f.write(json.dumps({"after_epoch": saved["epoch"], "argv": sys.argv[1:]}) + "\n")
+        algorithm.train()
+    (args.out / CHECKPOINT).unlink(missing_ok=True)
     (args.out / "done.json").write_text(json.dumps({"steps": recorder.steps,
                                                     "seconds": round(time.time() - recorder.start, 1)}) + "\n")
 
