@@ -197,7 +197,8 @@ class Recorder:
 
 CHECKPOINT = "checkpoint.pkl.gz"
 """The pickled algorithm (networks, optimiser, replay buffer, environments, collectors, exploration) and the
-random generators' states, written every ``--checkpoint-every`` epochs."""
+random generators' states (Python's, NumPy's, torch's and gym 0.10's module-level one behind
+``action_space.sample()``), written every ``--checkpoint-every`` epochs."""
 
 
 def _keys_view(keys: list):
@@ -213,9 +214,10 @@ def save_checkpoint(out: Path, algorithm, epoch: int, recorder: Recorder) -> Non
     """Pickle everything the run needs to go on after ``epoch``, atomically (a temporary file, then renamed)."""
     import numpy as np
     import torch
+    from gym.spaces import prng
 
     state = {"algorithm": algorithm, "epoch": epoch, "recorder": recorder.state(),
-             "rng": (random.getstate(), np.random.get_state(), torch.get_rng_state())}
+             "rng": (random.getstate(), np.random.get_state(), torch.get_rng_state(), prng.np_random.get_state())}
     partial = out / f"{CHECKPOINT}.partial"
     with gzip.open(partial, "wb", compresslevel=1) as f:
         pickle.dump(state, f, protocol=4)
@@ -229,10 +231,13 @@ def load_checkpoint(out: Path) -> dict:
 
     with gzip.open(out / CHECKPOINT, "rb") as f:
         state = pickle.load(f)  # a file this runner wrote: pickle runs code, so resume only your own runs
-    python_rng, numpy_rng, torch_rng = state["rng"]
+    from gym.spaces import prng
+
+    python_rng, numpy_rng, torch_rng, spaces_rng = state["rng"]
     random.setstate(python_rng)
     np.random.set_state(numpy_rng)
     torch.set_rng_state(torch_rng)
+    prng.np_random.set_state(spaces_rng)  # gym 0.10's action_space.sample(), which validation's exploration calls
     return state
 
 
