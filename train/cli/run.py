@@ -205,7 +205,7 @@ def _unfinished_message(unfinished: list) -> str:
     busy = [r.job for r in unfinished if r.status == "failed" and "in use by another ecorl process" in (r.error or "")]
     stopped = [r.job for r in unfinished if r.status == "interrupted"]
     broken = [r.job for r in unfinished if r.job not in busy and r.job not in stopped]
-    parts = [f"{len(broken)} failed ({', '.join(broken)}; see FAILED above)"] if broken else []
+    parts = [f"{len(broken)} failed ({', '.join(broken)}; their errors are above)"] if broken else []
     if stopped:
         parts.append(f"{len(stopped)} stopped at a checkpoint ({', '.join(stopped)})")
     if busy:

@@ -25,7 +25,7 @@ def test_parsers_attach_to_any_subparsers():
     for command in cli.COMMANDS:
         command.add_parser(sub)
     args = parser.parse_args(["run", "dynamism", "--task", "salad", "hunting", "--budget", "smoke", "--jobs", "3"])
-    assert (args.experiment, args.task, args.budget, args.jobs, args.executor) == ("dynamism", ["salad", "hunting"],
+    assert (args.experiment, args.task, args.budget, args.jobs, args.executor) == (["dynamism"], ["salad", "hunting"],
                                                                                    "smoke", 3, "local")
     args = parser.parse_args(["measure", "entropy", "--task", "all"])
     assert (args.measurement, args.task, args.seeds, args.steps) == ("entropy", "all", 25, 50_000)
@@ -210,6 +210,6 @@ def test_an_unfinished_sweep_names_each_run_and_why():
         JobResult("salad/c", "failed", 1.0, "run x is in use by another ecorl process (pid 7); wait"),
     ])
     assert "\n" not in message
-    assert "1 failed (salad/a; see FAILED above)" in message
+    assert "1 failed (salad/a; their errors are above)" in message
     assert "1 stopped at a checkpoint (salad/b)" in message
     assert "1 trained by another ecorl process (salad/c; it may finish them)" in message
