@@ -162,9 +162,10 @@ def test_experiments_run_together_share_a_pack_across_experiments_and_train_a_co
     from train.cli import main
     from train.experiments.multi import plan_many, split_copies
 
-    asked = ["--budget", "smoke", "--task", "salad", "--condition", "static-reset-free", "p0", "p0.05"]
+    asked = ["--budget", "smoke", "--steps", "700", "--task", "salad",
+             "--condition", "static-reset-free", "p0", "p0.05"]
     exps = [get_experiment("headline"), get_experiment("dynamism-sweep")]
-    train, copies = split_copies(plan_many(exps, "smoke", tmp_path / "plan", ["salad"], asked[-3:]))
+    train, copies = split_copies(plan_many(exps, "smoke", tmp_path / "plan", ["salad"], asked[-3:], steps=700))
     assert [(c.name, o.name) for c, o in copies] == [("dynamism-sweep/salad/p0", "headline/salad/static-reset-free")]
     [unit] = pack_jobs(train)  # the headline's run and the sweep's p 0.05 in one process
     assert isinstance(unit, Pack) and {j.experiment for j in unit.jobs} == {"headline", "dynamism-sweep"}
@@ -172,11 +173,11 @@ def test_experiments_run_together_share_a_pack_across_experiments_and_train_a_co
     assert main(["run", "headline", "dynamism-sweep", *asked, "--pack", "--jobs", "1", "--no-progress",
                  "--out", str(together)]) == 0
     for exp, condition in (("headline", "static-reset-free"), ("dynamism-sweep", "p0.05")):
-        assert main(["run", exp, *asked[:4], "--condition", condition, "--no-progress",
+        assert main(["run", exp, *asked[:6], "--condition", condition, "--no-progress",
                      "--out", str(tmp_path / "apart")]) == 0
         _same_metrics(together / exp / "salad" / condition, tmp_path / "apart" / exp / "salad" / condition)
     copy = together / "dynamism-sweep" / "salad" / "p0"
     assert metrics_without_timing(copy) == metrics_without_timing(together / "headline" / "salad" / "static-reset-free")
     assert (copy / "done.json").exists() and not (copy / "checkpoint.npz").exists()
-    assert main(["run", "dynamism-sweep", *asked[:4], "--condition", "p0", "--no-progress",
+    assert main(["run", "dynamism-sweep", *asked[:6], "--condition", "p0", "--no-progress",
                  "--out", str(together)]) == 0  # the copy counts as done for the experiment run alone
