@@ -82,7 +82,7 @@ def _list_experiments() -> None:
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Plan the experiment's runs and execute those not done yet."""
-    from train.experiments.sweep import plan, print_plan, run_jobs, write_experiment_file
+    from train.experiments.sweep import plan, print_plan, write_experiment_file
 
     began = time.monotonic()
     if args.list:
@@ -99,13 +99,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
                     args.device, args.first_seed)
     except ValueError as err:
         parser.error(str(err))
-    if args.out.exists() and not args.out.is_dir():
-        raise UserError(f"--out {args.out} is a file, not a directory; choose a directory path")
-    if args.device is not None:
-        from train.packing import check_device
-
-        with user_errors(ValueError):
-            check_device(args.device)
+    _check_out_and_device(args)
     if args.minutes is not None:
         from train.experiments.timebox import timebox
 
@@ -119,24 +113,44 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     where = args.out / exp.name
     print(f"ecorl run {exp.name} ({exp.paper}): {len(jobs)} runs, budget {args.budget}, executor {args.executor}, "
           f"results in {where}", file=sys.stderr)
-    try:
-        with user_errors(RuntimeError):
-            gpu = (args.device or "cpu").startswith("cuda")
-            pack = 1 if gpu else (args.jobs or os.cpu_count() or 1) if args.pack else 0
-            results = run_jobs(jobs, args.executor, args.jobs, args.address, args.progress, pack)
-    except KeyboardInterrupt:
-        print(f"interrupted: running conditions saved a checkpoint; re-run the same command to resume "
-              f"({where})", file=sys.stderr)
+    results = _execute(jobs, args, where)
+    if results is None:
         return 130
     if not _all_finished(results):
         return 1
     return _finish(where, args.report)
 
 
+def _check_out_and_device(args: argparse.Namespace) -> None:
+    """Refuse (one line) an --out that is a file and a --device torch cannot use here."""
+    if args.out.exists() and not args.out.is_dir():
+        raise UserError(f"--out {args.out} is a file, not a directory; choose a directory path")
+    if args.device is not None:
+        from train.packing import check_device
+
+        with user_errors(ValueError):
+            check_device(args.device)
+
+
+def _execute(jobs: list, args: argparse.Namespace, where: Path) -> list | None:
+    """Run the jobs (packed on a GPU or with --pack); their results, or None after Ctrl-C (said on stderr)."""
+    from train.experiments.sweep import run_jobs
+
+    try:
+        with user_errors(RuntimeError):
+            gpu = (args.device or "cpu").startswith("cuda")
+            pack = 1 if gpu else (args.jobs or os.cpu_count() or 1) if args.pack else 0
+            return run_jobs(jobs, args.executor, args.jobs, args.address, args.progress, pack)
+    except KeyboardInterrupt:
+        print(f"interrupted: running conditions saved a checkpoint; re-run the same command to resume "
+              f"({where})", file=sys.stderr)
+        return None
+
+
 def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, names: list[str]) -> int:
     """Several experiments as one sweep (`train.experiments.multi`)."""
     from train.experiments.multi import fill_copies, plan_many, split_copies
-    from train.experiments.sweep import print_plan, run_jobs, write_experiment_file
+    from train.experiments.sweep import print_plan, write_experiment_file
 
     for flag, value in (("--minutes", args.minutes), ("--restart", args.restart), ("--first-seed", args.first_seed)):
         if value:
@@ -146,13 +160,7 @@ def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, name
         jobs = plan_many(exps, args.budget, args.out, args.task, args.condition, args.seeds, args.steps, args.device)
     except ValueError as err:
         parser.error(str(err))
-    if args.out.exists() and not args.out.is_dir():
-        raise UserError(f"--out {args.out} is a file, not a directory; choose a directory path")
-    if args.device is not None:
-        from train.packing import check_device
-
-        with user_errors(ValueError):
-            check_device(args.device)
+    _check_out_and_device(args)
     train, copies = split_copies(jobs)
     if args.dry_run:
         print_plan(train)
@@ -166,14 +174,8 @@ def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, name
                 write_experiment_file(exp, args.budget, [j for j in jobs if j.experiment == exp.name], args.out)
     print(f"ecorl run {', '.join(ran)}: {len(train)} runs and {len(copies)} copies of them, budget {args.budget}, "
           f"executor {args.executor}, results in {args.out}", file=sys.stderr)
-    try:
-        with user_errors(RuntimeError):
-            gpu = (args.device or "cpu").startswith("cuda")
-            pack = 1 if gpu else (args.jobs or os.cpu_count() or 1) if args.pack else 0
-            results = run_jobs(train, args.executor, args.jobs, args.address, args.progress, pack)
-    except KeyboardInterrupt:
-        print(f"interrupted: running conditions saved a checkpoint; re-run the same command to resume "
-              f"({args.out})", file=sys.stderr)
+    results = _execute(train, args, args.out)
+    if results is None:
         return 130
     with user_errors(OSError):
         for line in fill_copies(copies):
