@@ -10,7 +10,6 @@ from pathlib import Path
 
 from train.cli.common import DEFAULT_OUT, UserError, minutes, nonnegative, positive, relative, user_errors
 from train.experiments.catalog import BUDGETS, EXPERIMENTS, get_experiment
-from train.experiments.sweep import summarize
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -189,6 +188,8 @@ def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, name
 
 def _all_finished(results: list) -> bool:
     """Print the count of runs by outcome and, unless all finished, what did not and what to do; True if all did."""
+    from train.experiments.sweep import summarize
+
     counts = summarize(results)
     print("runs: " + ", ".join(f"{n} {status}" for status, n in sorted(counts.items())), file=sys.stderr)
     if counts.get("kept"):
