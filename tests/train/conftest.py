@@ -25,6 +25,7 @@ def one_thread():
 REPO = Path(__file__).resolve().parents[2]
 
 SMOKE_TASKS = {
+    "settings": None,
     "headline": None,
     "headline-waypoint": None,
     "salad-gap": None,
@@ -46,15 +47,18 @@ SMOKE_TASKS = {
     "hunting-released-fig4": None,
     "foodcollector-episodes-1000": None,
     "hunting-behaviour": None,
+    "hunting-inventory": None,
 }
 """Which tasks of each experiment the smoke fixture runs (None: all of them)."""
 SMOKE_CONDITIONS = {
+    "settings": ["ep-h100-replay", "rf-batch256"],
     "factory-released": ["dynamic-reset-free", "one-time-reward"],
     "factory-make-axe": ["static-episodic", "rnd"],
     "hunting-released": ["env-shaping-waypoint-260k", "distance-reward"],
     "hunting-released-fig4": ["dynamic-episodic-distance"],
     "foodcollector-episodes-1000": ["dynamic-episodic"],
     "hunting-behaviour": ["eps-1"],
+    "hunting-inventory": ["rf-waypoint-inv8"],
 }
 """Which conditions of an experiment the smoke fixture runs where not all (each new kind of setting once)."""
 

@@ -6,6 +6,7 @@ settings that differ from the defaults. Regenerated once, on purpose, for issue 
 (``completion_terminal``, ``eval_dynamism``, ``eval_env_kwargs``, at defaults that change no job), the released
 experiments (`train.experiments.released`) and factory's shipped subgoal-mode arms naming the flat ladder
 (``reward_ladder=flat``), now that the released ladder is factory's default; every other job is unchanged.
+``hunting-inventory`` was appended later (its entry dumped from its own code; nothing else changed).
 """
 
 from __future__ import annotations

@@ -343,6 +343,17 @@ def test_shaping_gap_arms_are_fig_5s_salad_arms_with_one_setting_changed():
     assert (shaped.dqn.lr, shaped.env.shaping) == (3e-4, RELEASED_SALAD_SCHEDULES["280k"])
 
 
+def test_hunting_inventory_arms_are_the_shipped_fig_4_runs_with_only_the_inventory_read_8_times():
+    inv = get_experiment("hunting-inventory")
+    for arm, shipped in (("rf-sparse-inv8", "dynamism"), ("rf-waypoint-inv8", "dynamism-waypoint")):
+        exp = get_experiment(shipped)
+        [cond] = [c for c in exp.conditions["hunting"] if c.name == "dynamic-reset-free"]
+        [ours] = [c for c in inv.conditions["hunting"] if c.name == arm]
+        theirs = job_config(exp, "hunting", cond, exp.budget("paper"))
+        assert theirs.dqn.inventory_repeat == 1
+        assert job_config(inv, "hunting", ours, inv.budget("paper")) == theirs.replace(inventory_repeat=8)
+
+
 # (experiment, task, condition) pairs that build the very same config: one run stands for both, so the
 # shipped results copy it and the not-yet-run list counts it once (docs/results/paper/README.md).
 SAME_RUNS = [

@@ -25,6 +25,10 @@ def report(smoke_root, cli):
     return smoke_root, proc.stdout
 
 
+def test_every_experiment_has_a_smoke_run(smoke_tasks):
+    assert sorted(smoke_tasks) == sorted(EXPERIMENTS)
+
+
 def test_every_run_directory_is_complete(smoke_root, smoke_tasks, smoke_conditions):
     for name, tasks in smoke_tasks.items():
         exp = EXPERIMENTS[name]
