@@ -87,6 +87,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     if args.list:
         _list_experiments()
         return 0
+    if args.all and args.experiment:
+        parser.error("--all runs every experiment that trains; drop the names, or drop --all")
     names = [e.name for e in EXPERIMENTS.values() if not e.is_measurement] if args.all else args.experiment
     if not names:
         parser.error("name an EXPERIMENT (or pass --all, or --list)")

@@ -76,6 +76,9 @@ def test_run_all_plans_every_training_experiment_and_each_copy_once(capsys, tmp_
     with pytest.raises(SystemExit):
         cli.main(["run", "headline", "shaping", "--minutes", "5", "--out", str(tmp_path)])
     assert "--minutes applies to one experiment" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["run", "headline", "--all", "--out", str(tmp_path)])
+    assert "--all runs every experiment that trains; drop the names" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("bad", ["-1", "0", "nan", "inf"])
