@@ -87,6 +87,27 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
 
 
 @contextmanager
+def atomic_dir(path: str | Path, doing: str) -> Iterator[Path]:
+    """Yield a hidden folder beside ``path`` (``.NAME.DOING-PID``, not yet created) to build a directory in; when
+    the block completes it replaces ``path``, which must be absent or empty. The folder never outlives the block:
+    an interrupted or failed build leaves ``path`` as it was.
+    """
+    import shutil
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    building = path.parent / f".{path.name}.{doing}-{os.getpid()}"
+    shutil.rmtree(building, ignore_errors=True)
+    try:
+        yield building
+        if path.exists():
+            path.rmdir()  # empty: a directory with anything in it is refused here, not overwritten
+        os.rename(building, path)
+    finally:
+        shutil.rmtree(building, ignore_errors=True)
+
+
+@contextmanager
 def atomic_file(path: str | Path) -> Iterator[BinaryIO]:
     """Open a binary temporary file that replaces ``path`` (after fsync) only if the block completes."""
     with atomic_path(path) as tmp, open(tmp, "wb") as f:

@@ -317,8 +317,6 @@ def export_run_policies(run_dir: str | Path, state: dict[str, Any] | None = None
     scores = validation_success(run_dir, step)
     if scores and all(np.isnan(v) for v in scores.values()):
         scores = validation_success(run_dir, step, "return")
-    if not scores:
-        return {}
     online = state["agent"]["online"]
     scores = {k: v for k, v in scores.items() if bool(torch.isfinite(online[k]).all())}  # diverged seeds cannot act
     if not scores:

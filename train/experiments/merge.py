@@ -36,7 +36,7 @@ import torch
 
 from train.config import TrainConfig
 from train.experiments.jobs import DONE_FILE, read_done
-from train.fileio import atomic_text
+from train.fileio import atomic_dir, atomic_text
 from train.policy import export_run_policies, load_run
 from train.rundir import (
     EXPERIMENT_FILE,
@@ -88,10 +88,7 @@ def merge_seed_runs(parts: Sequence[str | Path], out: str | Path) -> Path:
     loaded = sorted((_read_part(Path(p)) for p in parts), key=lambda part: part.cfg.run.first_seed)
     _check_parts(loaded)
     cfg = loaded[0].cfg.replace(seeds=sum(part.cfg.run.seeds for part in loaded))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    building = out.parent / f".{out.name}.merging-{os.getpid()}"
-    shutil.rmtree(building, ignore_errors=True)
-    try:
+    with atomic_dir(out, "merging") as building:
         run = RunDir(building)
         run.prepare(cfg, resume=False)  # writes config.json
         try:
@@ -101,11 +98,6 @@ def merge_seed_runs(parts: Sequence[str | Path], out: str | Path) -> Path:
         finally:
             run.unlock()
         (building / LOCK_NAME).unlink(missing_ok=True)
-        if out.exists():
-            out.rmdir()  # empty, checked above
-        os.rename(building, out)
-    finally:
-        shutil.rmtree(building, ignore_errors=True)
     try:
         state = {"config": cfg.to_dict(), "step": loaded[0].step,
                  "agent": {"online": torch.cat([part.online for part in loaded])}}

@@ -10,7 +10,6 @@ jobs it is given (`train.experiments.sweep.pack_jobs`).
 from __future__ import annotations
 
 import json
-import os
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
@@ -19,7 +18,7 @@ from train.config import TrainConfig
 from train.experiments.experiment import Experiment
 from train.experiments.jobs import Job, job_is_done
 from train.experiments.sweep import plan
-from train.fileio import is_temporary
+from train.fileio import atomic_dir, is_temporary
 from train.rundir import LOCK_NAME, RunDir
 
 __all__ = ["fill_copies", "plan_many", "split_copies"]
@@ -82,14 +81,9 @@ def fill_copy(copy: Job, original: Job) -> str:
     if dest.exists() and any(dest.iterdir()):
         return (f"{copy.name}: not filled in from {original.name}, its folder holds files already (train it with "
                 f"'ecorl run {copy.experiment} --condition {copy.condition}', or empty it)")
-    staging = dest.with_name(f".{dest.name}.copying-{os.getpid()}")
-    shutil.rmtree(staging, ignore_errors=True)
-    shutil.copytree(original.run_dir, staging, ignore=lambda _, names: [n for n in names if _not_copied(n)])
-    RunDir(staging).write_config(TrainConfig.from_dict(copy.config))
-    if dest.exists():
-        dest.rmdir()
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    staging.rename(dest)
+    with atomic_dir(dest, "copying") as staging:
+        shutil.copytree(original.run_dir, staging, ignore=lambda _, names: [n for n in names if _not_copied(n)])
+        RunDir(staging).write_config(TrainConfig.from_dict(copy.config))
     return f"{copy.name}: the same run as {original.name}, copied"
 
 

@@ -126,6 +126,8 @@ MAX_FRAMES_READ = 5_000
 """Most frames of a video the report re-encodes (ecorl's films hold at most about 1 200)."""
 MAX_FRAME_SIDE = 1_280
 """Largest frame height or width the report re-encodes (ecorl's frames are a few hundred pixels a side)."""
+MAX_STRIP_BYTES = 16 << 20
+"""Largest filmstrip PNG copied into a report (ecorl's are a few hundred kilobytes)."""
 MAX_PIXELS_READ = 400_000_000
 """Most pixels (frames x height x width) of one video the report re-encodes: decoding and encoding time grow
 with them (ecorl's longest film, the food collector's 1 001 frames of 512 x 512, holds 262 million)."""
@@ -189,6 +191,3 @@ def web_copy(video: Path, out_dir: Path, name: str, caption: str, source: Path |
             print(f"ecorl report: skipped a filmstrip: {err}", file=sys.stderr)
     return WebVideo(mp4, poster, caption, source, copied)
 
-
-MAX_STRIP_BYTES = 16 << 20
-"""Largest filmstrip PNG copied into a report (ecorl's are a few hundred kilobytes)."""
