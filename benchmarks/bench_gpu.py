@@ -2,6 +2,7 @@
 
     python benchmarks/bench_gpu.py                      # parity, then K = 10, 40, 330: cpu, cuda eager, graphs
     python benchmarks/bench_gpu.py --ks 10 40 --epochs 4
+    python benchmarks/bench_gpu.py --ks 330 1000 --modes "cuda graphs" --adam per-row   # Adam's two layouts
 
 Parity: the same seeds trained two epochs on the CPU and on the GPU (TF32 off) must give online weights
 within 1e-5 (relative to the largest weight), and the GPU with each gradient step replayed as a CUDA graph
@@ -23,6 +24,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from train.agent.dqn import FlatAdam  # noqa: E402
 from train.config import TrainConfig  # noqa: E402
 from train.trainer import Trainer  # noqa: E402
 
@@ -105,22 +107,31 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=3, help="timed epochs of 500 steps per K and device")
     parser.add_argument("--profile", type=int, metavar="K", help="only print a profile of one epoch's updates "
                         "at K seeds (on CUDA if there is one)")
+    parser.add_argument("--modes", nargs="+", choices=list(MODES), default=list(MODES),
+                        help="the trainers to time (default: all there are here)")
+    parser.add_argument("--adam", choices=["default", "per-row", "flat"], default="default",
+                        help="how Adam's fused kernel gets the K rows: per row (the CPU's default), as one (K, P) "
+                        "tensor (CUDA's default), or each device's default")
     args = parser.parse_args()
+    FlatAdam.PER_ROW = {"default": None, "per-row": True, "flat": False}[args.adam]
     if args.profile:
         profile(args.profile, "cuda" if torch.cuda.is_available() else "cpu")
         return
-    modes = ["cpu"]
+    modes = [m for m in args.modes if m == "cpu"]
     if torch.cuda.is_available():
         torch.backends.cuda.matmul.allow_tf32 = False
         torch.backends.cudnn.allow_tf32 = False
+        modes += [m for m in args.modes if m != "cpu"]
+    else:
+        modes = ["cpu"]
+        print(f"no CUDA device here (torch {torch.__version__}): timing the CPU trainer only")
+    if len(modes) == len(MODES):  # parity compares all three
         error, graphs = parity()
         print(f"parity after two epochs: CPU vs CUDA max relative weight difference {error:.2e} "
               f"({'ok' if error <= 1e-5 else 'FAILED: above 1e-5'}); eager vs CUDA graphs {graphs:.2e} "
               f"({'ok' if graphs == 0 else 'FAILED: not identical'})")
-        modes += ["cuda eager", "cuda graphs"]
-    else:
-        print(f"no CUDA device here (torch {torch.__version__}): timing the CPU trainer only")
-    print("agent-steps/s, seconds of the first (untimed) epoch, share of the time collecting; per K:")
+    print(f"agent-steps/s, seconds of the first (untimed) epoch, share of the time collecting; per K (Adam: "
+          f"{args.adam}):")
     print(f"{'K':>5s} " + " ".join(f"{m:>30s}" for m in modes))
     for k in args.ks:
         cells = []
@@ -129,7 +140,7 @@ def main() -> None:
             cells.append(f"{steps_per_s:>14,.0f} {first:>7.1f} s {collecting:>5.0%}")
         print(f"{k:>5d} " + " ".join(cells), flush=True)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    gpu = f", GPU peak {torch.cuda.max_memory_allocated() / 2**20:.0f} MiB" if len(modes) > 1 else ""
+    gpu = f", GPU peak {torch.cuda.max_memory_allocated() / 2**20:.0f} MiB" if modes != ["cpu"] else ""
     print(f"peak RSS {peak:.0f} MiB{gpu}")
 
 

@@ -96,18 +96,21 @@ def _timed_cfgs(pack: PaperPack, max_k: int | None) -> list[TrainConfig]:
     return cfgs
 
 
-def time_pack(pack: PaperPack, epochs: int, max_k: int | None) -> tuple[float, float, int]:
-    """(seconds per epoch, seconds per evaluation, seeds timed) of the pack's trainer."""
+def time_pack(pack: PaperPack, epochs: int, max_k: int | None, seconds: float = 0.0) -> tuple[float, float, int]:
+    """(seconds per epoch, seconds per evaluation, seeds timed) of the pack's trainer, timed over ``epochs``
+    epochs or, if longer, as many as fill ``seconds``.
+    """
     cfgs = _timed_cfgs(pack, max_k)
     trainer = Trainer.packed(cfgs, [None] * len(cfgs), [False] * len(cfgs))
     device = cfgs[0].run.device
     trainer.train_epoch()  # untimed: warm-up, first kernels, graph capture
     _sync(device)
-    began = time.perf_counter()
-    for _ in range(epochs):
+    began, done = time.perf_counter(), 0
+    while done < epochs or time.perf_counter() - began < seconds:
         trainer.train_epoch()
-    _sync(device)
-    epoch = (time.perf_counter() - began) / epochs
+        _sync(device)
+        done += 1
+    epoch = (time.perf_counter() - began) / done
     began = time.perf_counter()
     trainer.evaluate()
     _sync(device)
@@ -132,12 +135,20 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--device", default="cuda" if torch.cuda.is_available() else "cpu",
                         help="cpu, cuda or cuda:N (default: cuda where there is one)")
     parser.add_argument("--epochs", type=int, default=2, help="timed epochs per pack, after an untimed one")
+    parser.add_argument("--seconds", type=float, default=0.0, help="time each pack over at least this many "
+                        "seconds of epochs (so that packs timed side by side overlap)")
     parser.add_argument("--max-k", type=int, default=None, help="time at most this many seeds per pack and scale "
                         "linearly in K (the CPU's cost; default: every pack at its full K)")
     parser.add_argument("--tasks", nargs="+", default=None, help="only these tasks' packs")
     parser.add_argument("--census", action="store_true", help="only count the paper's runs; time nothing")
+    parser.add_argument("--pack", type=int, nargs="+", default=None, metavar="I",
+                        help="only these packs, by their row in the census (from 0), say to time packs side by side")
     args = parser.parse_args(argv)
     packs = [p for p in census(args.device) if args.tasks is None or p.task in args.tasks]
+    if args.pack is not None:
+        if max(args.pack) >= len(packs) or min(args.pack) < 0:
+            parser.error(f"--pack: rows 0 to {len(packs) - 1} here; see --census")
+        packs = [packs[i] for i in args.pack]
     total = sum(p.agent_steps for p in packs)
     print(f"the paper at its budget: {sum(len(p.names) for p in packs)} distinct conditions in {len(packs)} packs, "
           f"{total / 1e6:,.0f} M agent-steps ({args.device}, torch {torch.__version__})")
@@ -149,7 +160,7 @@ def main(argv: list[str] | None = None) -> None:
         if args.census:
             print(row + " | | | |")
             continue
-        epoch, evaluation, timed = time_pack(pack, args.epochs, args.max_k)
+        epoch, evaluation, timed = time_pack(pack, args.epochs, args.max_k, args.seconds)
         scale = pack.k / timed
         epoch_steps = pack.cfgs[0].dqn.epoch_steps
         seconds = scale * (pack.steps / epoch_steps * epoch + pack.evaluations * evaluation)

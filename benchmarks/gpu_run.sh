@@ -6,7 +6,9 @@
 #     bash benchmarks/gpu_run.sh shaping --task scavenging --budget paper + rnd --budget paper   # side by side
 #
 # Runs separated by a lone "+" train side by side, one process each (on a lent H200 four processes summed to
-# about twice one process's agent-steps/s, docs/gpu.md).
+# about twice one process's agent-steps/s, docs/gpu.md). From MPS_MIN (default 4) processes on, where
+# nvidia-cuda-mps-control is at hand, CUDA MPS shares the card between them (eight processes: 2.7x the
+# agent-steps/s of time-slicing; two: 0.87x; docs/gpu.md); MPS_MIN=0 turns it off.
 # It installs the carried wheels (`make wheels`) where gymnasium or pymunk is missing, runs `ecorl run ARGS --device $DEVICE
 # (cuda) --out results` under `timeout -s INT`, so every trainer stops at the end of an epoch with a
 # checkpoint, and packs results/ into gpu-stage/results.tar.gz (split into results.tar.gz.00, .01, ... of 15 MiB
@@ -105,6 +107,23 @@ start_run() {
 }
 print_status() { python3 -m train.cli run "$@" --device "${DEVICE:-cuda}" --out results --dry-run; }
 
+count_run() { runs=$(( runs + 1 )); }
+start_mps() {  # CUDA MPS for many processes side by side; left running for the next chunk of the lease
+    local min=${MPS_MIN:-4}
+    (( min > 0 && runs >= min )) && [[ ${DEVICE:-cuda} == cuda* ]] && command -v nvidia-cuda-mps-control > /dev/null \
+        || return 0
+    export CUDA_MPS_PIPE_DIRECTORY=/tmp/ecorl-mps/pipe CUDA_MPS_LOG_DIRECTORY=/tmp/ecorl-mps/log
+    mkdir -p "$CUDA_MPS_PIPE_DIRECTORY" "$CUDA_MPS_LOG_DIRECTORY"
+    if pgrep -x nvidia-cuda-mps-control > /dev/null || nvidia-cuda-mps-control -d; then
+        echo "== CUDA MPS shares the card between the $runs processes"
+    else
+        echo "== CUDA MPS did not start: the $runs processes time-slice the card"
+    fi
+}
+
+runs=0
+each_spec count_run "$@"
+start_mps
 began=$(date +%s)
 each_spec start_run "$@"
 code=0

@@ -43,6 +43,11 @@ class FlatAdam:
     Adam acts elementwise, so one buffer holding every agent is the same as one optimiser per agent.
     """
 
+    PER_ROW: bool | None = None
+    """Hand the fused kernel one tensor per agent row (True), one (K, P) tensor (False), or per row on the CPU
+    only (None, the default: the CPU kernel's scalar tail needs it, the CUDA kernel does not; benchmarks flip it).
+    """
+
     def __init__(self, params: Tensor, lr: float, eps: float = 1e-8, betas: tuple[float, float] = (0.9, 0.999),
                  fused: bool = True):
         self.lr, self.eps, self.betas = lr, eps, betas
@@ -52,6 +57,7 @@ class FlatAdam:
         # PyTorch's fused kernel (what torch.optim.Adam(fused=True) calls) does the whole update in one
         # pass, ~3x faster here than the six elementwise operations below, which remain the fallback.
         self.fused = fused and hasattr(torch, "_fused_adam_")
+        self.per_row = params.device.type == "cpu" if self.PER_ROW is None else self.PER_ROW
         self._rows_key: tuple | None = None
         self._rows: list[list[Tensor]] = []
 
@@ -77,17 +83,20 @@ class FlatAdam:
         params.addcdiv_(self.exp_avg, denom, value=-self.lr / bias1)
 
     def _agent_rows(self, params: Tensor, grad: Tensor) -> list[list[Tensor]]:
-        """The fused kernel's tensor lists (parameters, gradients, moments, none, step counts), one tensor per
-        agent row, made once per pair of buffers (making the K views at each step costs about what the kernel does).
+        """The fused kernel's tensor lists (parameters, gradients, moments, none, step counts), made once per
+        pair of buffers (making the K views at each step costs about what the kernel does).
 
-        Per row because the kernel ends each tensor with a scalar loop that rounds differently from its
-        vector body: on one (K, P) tensor the last agent's last entries would take it, so a seed's training
-        would depend on how many seeds share its process (`ecorl run --first-seed` parts).
+        On the CPU one tensor per agent row, because the CPU kernel ends each tensor with a scalar loop that
+        rounds differently from its vector body: on one (K, P) tensor the last agent's last entries would take
+        it, so a seed's training would depend on how many seeds share its process (`ecorl run --first-seed`
+        parts). The CUDA kernel does the same arithmetic for every element, so there one (K, P) tensor is
+        exact and takes one launch instead of one per ~100 rows (a test on CUDA holds the two equal).
         """
         key = (params.data_ptr(), params.shape, params.stride(), grad.data_ptr(), grad.stride())
         if self._rows_key != key:
-            rows = [list(t.unbind(0)) for t in (params, grad, self.exp_avg, self.exp_avg_sq)]
-            self._rows_key, self._rows = key, [*rows, [], [self._step_tensor] * params.shape[0]]
+            tensors = (params, grad, self.exp_avg, self.exp_avg_sq)
+            rows = [list(t.unbind(0)) if self.per_row else [t] for t in tensors]
+            self._rows_key, self._rows = key, [*rows, [], [self._step_tensor] * len(rows[0])]
         return self._rows
 
     def state_dict(self) -> dict[str, Any]:
