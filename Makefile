@@ -21,7 +21,7 @@ $(VENV)/.installed: pyproject.toml
 	  ( $(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install --progress-bar off $(WHEELS) "$(TORCH)" ) \
 	  && $(BIN)/pip install --progress-bar off $(WHEELS) -e ".[dev]" | grep -E "^(Collecting|Successfully)"; \
 	  kill $$ticker
-	$(BIN)/python -c "import ecology, train" && touch $@
+	$(BIN)/python -c "import ecology, train" && $(BIN)/python -m train.warmup && touch $@
 
 # The headline's contrast, live: static vs dynamic non-episodic salad (waypoint reward, 3 seeds), sized to what
 # this machine trains by DEMO_SECONDS after make started; the page leads with the shipped paper-budget panels.
