@@ -22,8 +22,9 @@ def render_world(world: np.void, rules: np.void, channels=(), tile: int = TILE) 
     """
     grid = world["grid"]
     n = grid.shape[0]
-    frame = np.repeat(np.repeat(COLORS[grid], tile, axis=0), tile, axis=1)
-    _shade_outside_view(frame, world["agent"], n, tile)
+    cells = COLORS[grid]  # (n, n, 3), a copy: shaded per cell, then scaled up to pixels
+    _shade_outside_view(cells, world["agent"], n)
+    frame = np.repeat(np.repeat(cells, tile, axis=0), tile, axis=1)
     _draw_grid_lines(frame, n, tile)
     _draw_labels(frame, grid, tile)
     for i in range(int(rules["num_predators"])):
@@ -35,13 +36,14 @@ def render_world(world: np.void, rules: np.void, channels=(), tile: int = TILE) 
     return np.concatenate([frame, _status_strip(world, n * tile)], axis=0)
 
 
-def _shade_outside_view(frame: np.ndarray, agent, n: int, tile: int) -> None:
+def _shade_outside_view(cells: np.ndarray, agent, n: int) -> None:
+    """Darken (in place) the cell colours (n, n, 3) outside the agent's view."""
     half = VIEW // 2
-    mask = np.ones(frame.shape[:2], dtype=bool)
-    x0, y0 = (max(int(agent[0]) - half, 0) * tile, max(int(agent[1]) - half, 0) * tile)
-    x1, y1 = (min(int(agent[0]) + half + 1, n) * tile, min(int(agent[1]) + half + 1, n) * tile)
+    mask = np.ones(cells.shape[:2], dtype=bool)
+    x0, y0 = max(int(agent[0]) - half, 0), max(int(agent[1]) - half, 0)
+    x1, y1 = min(int(agent[0]) + half + 1, n), min(int(agent[1]) + half + 1, n)
     mask[y0:y1, x0:x1] = False
-    frame[mask] = (frame[mask] * (1 - VIEW_SHADE * 2.5)).astype(np.uint8)
+    cells[mask] = (cells[mask] * (1 - VIEW_SHADE * 2.5)).astype(np.uint8)
 
 
 def _draw_grid_lines(frame: np.ndarray, n: int, tile: int) -> None:

@@ -102,27 +102,34 @@ MAX_EXPERIMENT_BYTES = 4 << 20
 """Largest experiment.json read (ecorl writes about 10 KB)."""
 
 
-def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
+def read_columns(path: Path, columns: tuple[str, ...], missing: float | tuple[float, ...] = 0.0
                  ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
     """(steps (E,), seeds (S,), one (E, S) array per column) of a metrics.csv; evaluations missing a seed are
-    dropped, and a column a file lacks (or leaves empty) reads as ``missing``. Rows are read one at a time
-    and the file refused as soon as it passes `MAX_METRICS_BYTES`, `MAX_SEEDS` or `MAX_EVALUATIONS`, so a crafted
-    file costs a bounded amount of memory.
+    dropped, and a column a file lacks (or leaves empty) reads as ``missing`` (one value, or one per column).
+    Rows are read one at a time and the file refused as soon as it passes `MAX_METRICS_BYTES`, `MAX_SEEDS` or
+    `MAX_EVALUATIONS`, so a crafted file costs a bounded amount of memory.
     """
+    missing = missing if isinstance(missing, tuple) else (missing,) * len(columns)
     by_step: dict[int, dict[int, list[float]]] = {}
     seeds: set[int] = set()
     text = read_text(path, MAX_METRICS_BYTES)  # a regular file only: no link, FIFO or device
-    reader = csv.DictReader(io.StringIO(text, newline=""))
-    header = reader.fieldnames or []
-    if header and not {"step", "seed"} <= set(header):
+    reader = csv.reader(io.StringIO(text, newline=""))
+    header = next(reader, None)
+    if header is None:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), [np.zeros((0, 0)) for _ in columns]
+    if not {"step", "seed"} <= set(header):
         raise ReportError(f"{path} is not an ecorl metrics file (its header {header[:4]} has no step and seed "
                           f"columns); {_DAMAGED}")
+    where = {name: i for i, name in enumerate(header)}  # a repeated name: its last column, as csv.DictReader
+    layout = (len(header), where["step"], where["seed"], [where.get(c) for c in columns], missing)
     damaged = None  # (line, error) of a bad row: fine only if it is the last (a run interrupted mid-write)
     for row in reader:
+        if not row:
+            continue  # a blank line
         if damaged is not None:
             raise ReportError(f"{path} line {damaged[0]} is not a metrics row ({damaged[1]}); {_DAMAGED}")
         try:
-            step, seed, values = _metrics_row(row, columns, missing)
+            step, seed, values = _metrics_row(row, *layout)
         except ValueError as error:
             damaged = (reader.line_num, error)
             continue
@@ -142,14 +149,15 @@ def read_columns(path: Path, columns: tuple[str, ...], missing: float = 0.0
             [table[..., i] for i in range(len(columns))])
 
 
-def _metrics_row(row: dict, columns: tuple[str, ...], missing: float) -> tuple[int, int, list[float]]:
-    """(step, seed, the ``columns``' values) of one metrics.csv row, else ValueError."""
-    if None in row.values():  # fewer cells than the header
+def _metrics_row(row: list[str], width: int, step_at: int, seed_at: int, picks: list[int | None],
+                 missing: tuple[float, ...]) -> tuple[int, int, list[float]]:
+    """(step, seed, the picked cells' values) of one metrics.csv row of ``width`` header columns, else ValueError."""
+    if len(row) < width:
         raise ValueError("fewer cells than the header")
-    step, seed = int(row["step"]), int(row["seed"])
+    step, seed = int(row[step_at]), int(row[seed_at])
     if not (0 <= step <= MAX_STEP and 0 <= seed <= MAX_STEP):
         raise ValueError(f"step {step} or seed {seed} outside [0, {MAX_STEP}]")
-    return step, seed, [float(v) if v not in (None, "") else missing for v in (row.get(c) for c in columns)]
+    return step, seed, [float(row[i]) if i is not None and row[i] != "" else gap for i, gap in zip(picks, missing)]
 
 
 def read_metrics(path: Path, metric: str) -> tuple[np.ndarray, np.ndarray]:
@@ -190,10 +198,10 @@ def run_reward_bound(run_dir: Path) -> float:
 def read_run(run_dir: Path, task: str, condition: str, label: str) -> Run | None:
     """The `Run` of one condition's run directory (None when it has no complete evaluation yet)."""
     metric = task_metric(task)
-    steps, seeds, (values, loss, max_q) = read_columns(run_dir / "metrics.csv", (metric, "loss", "max_q"))
+    steps, seeds, (values, loss, max_q, top_share) = read_columns(
+        run_dir / "metrics.csv", (metric, "loss", "max_q", "top_action_share"), missing=(0.0, 0.0, 0.0, np.nan))
     if not len(steps):
         return None
-    _, _, (top_share,) = read_columns(run_dir / "metrics.csv", ("top_action_share",), missing=np.nan)
     return Run(task, condition, label, run_dir, metric, steps, values, (run_dir / DONE_FILE).exists(), seeds,
                blown(loss, max_q, run_gamma(run_dir), run_reward_bound(run_dir)), top_share)
 
