@@ -21,8 +21,8 @@ from train.experiments.report.runs import ExperimentResults, Run
 from train.fileio import atomic_text, atomic_write, is_temporary
 from train.safeio import UnsafeFileError, load_json, no_link_below, read_bytes, regular_file
 
-SMOKE_FILM_EPISODES = 1
-"""Episodes filmed of a run at the smoke budget (seconds of training, for tests: one episode shows the film works)."""
+SMOKE_FILM_STEPS = 40
+"""Steps filmed of a run at the smoke budget (seconds of training, for tests: 40 frames show the film works)."""
 VIDEO_INFO = "video.json"
 """Sidecar of a filmed run's ``video.mp4``: the seed filmed and the episodes solved."""
 STRIP_NAME = "filmstrip.png"
@@ -34,16 +34,17 @@ def best_seed(run: Run) -> int:
     return int(np.argmax(run.values[-1])) if run.values.size else 0
 
 
-def film_best_seed(run: Run, target: Path, policy: Path | None = None, episodes: int | None = None) -> Path:
+def film_best_seed(run: Run, target: Path, policy: Path | None = None, steps: int | None = None) -> Path:
     """Film the best seed of ``run`` (its final policy in the test MDP) into ``target``, with its sidecar and
     the filmstrip of its first episode; ``policy``: the best seed's exported policy file, where the run kept
-    no checkpoint (shipped results); ``episodes``: how many (default: the films' `VIDEO_EPISODES`).
+    no checkpoint (shipped results); ``steps``: a film of that many steps instead of the films' `VIDEO_EPISODES`
+    episodes.
     """
-    from train.experiments.video import VIDEO_EPISODES, record_video
+    from train.experiments.video import record_video
 
     index = best_seed(run)
     video = record_video(None, target, policy_path=policy or run.path, seed_index=0 if policy else index,
-                         strip=target.with_name(STRIP_NAME), episodes=episodes or VIDEO_EPISODES)
+                         strip=target.with_name(STRIP_NAME), steps=steps)
     first = _first_seed(run.path)
     info = {"seed": first + index, "episodes": video.episodes, "solved": video.solved, "metric": video.metric,
             "summary": video.summary(), "final": float(run.values[-1][index])}
@@ -68,7 +69,7 @@ def render_missing_videos(exp: ExperimentResults, root: Path | None = None) -> l
     from train.rundir import RunDirError
 
     made = []
-    episodes = SMOKE_FILM_EPISODES if exp.info.get("budget") == "smoke" else None
+    steps = SMOKE_FILM_STEPS if exp.info.get("budget") == "smoke" else None
     for run in exp.runs:
         target = run.path / "video.mp4"
         exported = run.path / RUN_POLICIES_DIR / "best.npz"
@@ -76,7 +77,7 @@ def render_missing_videos(exp: ExperimentResults, root: Path | None = None) -> l
         if run.done and not target.exists() and (has_checkpoint or exported.is_file()):
             try:
                 no_link_below(root or exp.path, target)
-                made.append(film_best_seed(run, target, None if has_checkpoint else exported, episodes))
+                made.append(film_best_seed(run, target, None if has_checkpoint else exported, steps))
             except (RunDirError, ValueError, FileNotFoundError) as err:
                 print(f"ecorl report: no video of {run.path}: {err}", file=sys.stderr)
     return made
