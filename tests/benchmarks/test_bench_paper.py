@@ -39,3 +39,17 @@ def test_a_tiny_timing_projects_a_time(capsys):
     out = capsys.readouterr().out
     assert "| walled-salad | 10 | 30 | 1,000,200 | 30.0 | 2 |" in out
     assert "the whole paper, one pack after another on this cpu:" in out
+
+
+def test_packs_are_picked_by_their_census_row_and_a_row_past_the_end_is_refused(capsys):
+    import pytest
+
+    bench = _bench()
+    bench.main(["--census", "--tasks", "salad", "hunting", "--pack", "0"])
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| hunting") or
+            line.startswith("| salad")]
+    first = [p for p in bench.census("cpu") if p.task in ("salad", "hunting")][0]
+    assert len(rows) == 1 and rows[0].startswith(f"| {first.task} | {len(first.names)} | {first.k} |")
+    with pytest.raises(SystemExit):
+        bench.main(["--census", "--pack", "99"])
+    assert "--pack: rows 0 to" in capsys.readouterr().err
