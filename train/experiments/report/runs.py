@@ -116,7 +116,7 @@ def read_columns(path: Path, columns: tuple[str, ...], missing: float | tuple[fl
     reader = csv.reader(io.StringIO(text, newline=""))
     header = next(reader, None)
     if header is None:
-        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), [np.zeros((0, 0)) for _ in columns]
+        return _no_rows(columns)
     if not {"step", "seed"} <= set(header):
         raise ReportError(f"{path} is not an ecorl metrics file (its header {header[:4]} has no step and seed "
                           f"columns); {_DAMAGED}")
@@ -140,13 +140,18 @@ def read_columns(path: Path, columns: tuple[str, ...], missing: float | tuple[fl
                               f"{MAX_METRIC_ROWS:,} rows, the most a report reads per run; {_DAMAGED}")
     del text, reader
     if not by_step:
-        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), [np.zeros((0, 0)) for _ in columns]
+        return _no_rows(columns)
     order = sorted(seeds)
     steps = sorted(s for s, vals in by_step.items() if len(vals) == len(order))
     table = np.array([[by_step[s][k] for k in order] for s in steps], dtype=np.float64)
     table = table.reshape(len(steps), len(order), len(columns))
     return (np.array(steps, dtype=np.int64), np.array(order, dtype=np.int64),
             [table[..., i] for i in range(len(columns))])
+
+
+def _no_rows(columns: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """`read_columns`' answer for a file with no complete evaluation."""
+    return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), [np.zeros((0, 0)) for _ in columns]
 
 
 def _metrics_row(row: list[str], width: int, step_at: int, seed_at: int, picks: list[int | None],
