@@ -7,6 +7,7 @@
 set -uo pipefail
 python3 -m pip install -q --no-index --no-deps --no-compile --upgrade --target /tmp/site wheels/*.whl || exit 1
 export PYTHONPATH="/tmp/site:$PWD" PYTHONUNBUFFERED=1
+source benchmarks/mps.sh
 SECONDS_TIMED=${1:-60}
 TASKS="salad walled-salad hunting scavenging factory"
 LOG="${OUT:-.}/gpu_paper_side_by_side.log"
@@ -25,16 +26,12 @@ side_by_side() {  # every pack in its own process, all at once; their table rows
 {
     nvidia-smi -L
     echo "== $packs packs side by side under CUDA MPS ($(date +%T))"
-    export CUDA_MPS_PIPE_DIRECTORY=/tmp/mps/pipe CUDA_MPS_LOG_DIRECTORY=/tmp/mps/log
-    mkdir -p "$CUDA_MPS_PIPE_DIRECTORY" "$CUDA_MPS_LOG_DIRECTORY"
-    if nvidia-cuda-mps-control -d; then
+    if mps_start; then
         side_by_side
-        echo quit | nvidia-cuda-mps-control
-        sleep 2
+        mps_stop
     else
         echo "!! MPS did not start"
     fi
-    unset CUDA_MPS_PIPE_DIRECTORY CUDA_MPS_LOG_DIRECTORY
     echo "== $packs packs side by side, time-sliced ($(date +%T))"
     side_by_side
     echo "== done $(date +%T)"

@@ -112,9 +112,8 @@ start_mps() {  # CUDA MPS for many processes side by side; left running for the 
     local min=${MPS_MIN:-4}
     (( min > 0 && runs >= min )) && [[ ${DEVICE:-cuda} == cuda* ]] && command -v nvidia-cuda-mps-control > /dev/null \
         || return 0
-    export CUDA_MPS_PIPE_DIRECTORY=/tmp/ecorl-mps/pipe CUDA_MPS_LOG_DIRECTORY=/tmp/ecorl-mps/log
-    mkdir -p "$CUDA_MPS_PIPE_DIRECTORY" "$CUDA_MPS_LOG_DIRECTORY"
-    if pgrep -x nvidia-cuda-mps-control > /dev/null || nvidia-cuda-mps-control -d; then
+    source "$(dirname "${BASH_SOURCE[0]}")/mps.sh"
+    if mps_start; then
         echo "== CUDA MPS shares the card between the $runs processes"
     else
         echo "== CUDA MPS did not start: the $runs processes time-slice the card"
