@@ -18,13 +18,13 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import sys
 import zipfile
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, BinaryIO
 
 import numpy as np
-import torch
 
 from train.fileio import atomic_file
 from train.safeio import UnsafeFileError, loads_json, open_regular, read_npy
@@ -58,9 +58,10 @@ def legacy_message(path: Path) -> str:
 def flatten(tree: Any, prefix: str = "") -> tuple[Any, dict[str, np.ndarray]]:
     """Split ``tree`` into a JSON-friendly tree and its arrays (keyed by their path, e.g. ``agent/online``)."""
     arrays: dict[str, np.ndarray] = {}
+    torch = sys.modules.get("torch")  # not imported: no tensor can be in the tree (commands that need no torch)
 
     def walk(node: Any, path: str) -> Any:
-        if isinstance(node, torch.Tensor):
+        if torch is not None and isinstance(node, torch.Tensor):
             arrays[path] = node.detach().cpu().numpy()
             return {"__tensor__": path}
         if isinstance(node, np.ndarray):
@@ -86,7 +87,11 @@ def unflatten(tree: Any, arrays: dict[str, np.ndarray | None]) -> Any:
             return arrays.get(tree["__array__"])
         if set(tree) == {"__tensor__"}:
             value = arrays.get(tree["__tensor__"])
-            return None if value is None else torch.from_numpy(value)
+            if value is None:
+                return None
+            import torch
+
+            return torch.from_numpy(value)
         return {k: unflatten(v, arrays) for k, v in tree.items()}
     if isinstance(tree, list):
         return [unflatten(v, arrays) for v in tree]

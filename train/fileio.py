@@ -1,4 +1,4 @@
-"""Every file ecorl writes goes through here: atomic replacement, advisory locks, worker lifetime.
+"""Every file ecorl writes goes through here: atomic replacement and advisory locks.
 
 * `atomic_file` / `atomic_path`: write under a unique temporary name in the target's directory, fsync, then
   ``os.replace`` onto the target. A crash or SIGKILL at any point leaves the old file or the new one, never a
@@ -8,20 +8,16 @@
 * `FileLock`: an exclusive ``fcntl.flock`` on a lock file (opened with ``O_NOFOLLOW``, never truncated),
   taken without waiting; a second holder is refused with the first one's pid. The kernel releases it
   when the process dies, however it dies.
-* `die_with_parent`: a worker process asks Linux for SIGTERM when its parent dies.
 """
 
 from __future__ import annotations
 
-import ctypes
 import errno
 import fcntl
 import os
 import re
 import secrets
-import signal
 import stat
-import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -203,18 +199,3 @@ class FileLock:
 
     def __exit__(self, *exc) -> None:
         self.release()
-
-
-PR_SET_PDEATHSIG = 1
-"""Linux prctl option: the signal a process gets when its parent thread dies."""
-
-
-def die_with_parent(sig: int = signal.SIGTERM) -> bool:
-    """Ask Linux to send ``sig`` to this process when its parent dies; False where that is unavailable."""
-    if not sys.platform.startswith("linux"):
-        return False
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        return libc.prctl(PR_SET_PDEATHSIG, int(sig), 0, 0, 0) == 0
-    except (OSError, AttributeError):
-        return False

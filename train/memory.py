@@ -11,8 +11,6 @@ import math
 import os
 from collections.abc import Sequence
 
-from train.agent.replay import Replay
-from train.agent.staging import STAGE_BYTES
 from train.config import TrainConfig
 
 FLOAT = 4
@@ -29,6 +27,9 @@ def _mlp_params(widths: tuple[int, ...]) -> int:
 
 def estimate_bytes(cfg: TrainConfig, obs_dim: int, cells: int, num_params: int, binary: bool) -> dict[str, int]:
     """Bytes of each per-seed buffer of a run of ``cfg`` (all seeds), by name."""
+    from train.agent.replay import Replay  # torch: imported by the commands that size a run, not by every one
+    from train.agent.staging import STAGE_BYTES
+
     k, d = cfg.run.seeds, cfg.dqn
     widest = max(obs_dim, *d.view_layers, *d.inventory_layers, *d.head_layers)
     parts = {

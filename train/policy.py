@@ -26,7 +26,7 @@ from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.config import TrainConfig
 from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
 from train.fileio import atomic_file
-from train.rundir import EXPERIMENT_FILE, RunDir, RunDirError
+from train.rundir import EXPERIMENT_FILE, RUN_POLICIES_DIR, RunDir, RunDirError
 from train.safeio import load_json, loads_json, open_regular, read_npy, read_text, regular_file
 from train.statecheck import check_counter
 from train.tasks import get_task, probe
@@ -300,10 +300,6 @@ def export_policy(run_dir: str | Path, out: str | Path, seed_index: int | None =
         success = validation_success(run_dir, int(state["step"]))
         seed_index = max(success, key=lambda k: (success[k], -k)) if success else 0
     return save_policy(_policy_of(run_dir, state, seed_index), out)
-
-
-RUN_POLICIES_DIR = "policies"
-"""Where a finished experiment run keeps its exported policies (``best.npz``, ``median.npz``)."""
 
 
 def export_run_policies(run_dir: str | Path, state: dict[str, Any] | None = None) -> dict[str, Path]:

@@ -29,7 +29,6 @@ from train.config import TrainConfig
 from train.fileio import FileLock, LockedError, atomic_file, atomic_write, is_temporary
 from train.memory import checkpoint_limit
 from train.safeio import UnsafeFileError, open_regular, read_npy, real_dir
-from train.statecheck import check_counter
 
 __all__ = ["ADDED_COLUMNS", "METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write",
            "check_same_run", "read_visits", "write_visits"]
@@ -59,6 +58,9 @@ written by ``ecorl run``."""
 
 LOCK_NAME = ".lock"
 """The lock file of a run directory (held by the one process that writes the run)."""
+
+RUN_POLICIES_DIR = "policies"
+"""Where a finished experiment run keeps its exported policies (``best.npz``, ``median.npz``)."""
 
 
 SUBDIRS = ("visits", "tensorboard")
@@ -179,6 +181,8 @@ class RunDir:
 
     def saved_config(self) -> tuple[TrainConfig, int]:
         """The checkpoint's configuration and the step the run stands at (reads no arrays)."""
+        from train.statecheck import check_counter  # torch: only where a checkpoint is opened
+
         state = self.read_checkpoint(keys=[])
         try:
             return TrainConfig.from_dict(state["config"]), check_counter(state["step"], "step")

@@ -80,3 +80,10 @@ def test_importing_the_trainer_loads_nothing_of_the_pipeline():
               "print(' '.join(m for m in sys.modules if m.startswith(('train.experiments', 'train.cli'))))")
     out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+def test_the_command_line_loads_torch_only_for_a_command_that_needs_it():
+    """``ecorl --help`` and a mistyped option answer at once: torch takes seconds to import."""
+    script = "import sys, train.cli\ntrain.cli.build_parser()\nprint('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

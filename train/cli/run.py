@@ -81,8 +81,6 @@ def _list_experiments() -> None:
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Plan the experiment's runs and execute those not done yet."""
-    from train.experiments.sweep import plan, print_plan, write_experiment_file
-
     began = time.monotonic()
     if args.list:
         _list_experiments()
@@ -96,6 +94,11 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         return _handle_many(args, parser, names)
     try:
         exp = get_experiment(names[0])
+    except ValueError as err:
+        parser.error(str(err))
+    from train.experiments.sweep import plan, print_plan, write_experiment_file  # torch: seconds to import
+
+    try:
         jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition, args.restart,
                     args.device, args.first_seed)
     except ValueError as err:

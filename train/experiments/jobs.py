@@ -18,7 +18,7 @@ from typing import Any
 from train.config import TrainConfig
 from train.experiments import table1
 from train.fileio import atomic_text, is_temporary
-from train.policy import RUN_POLICIES_DIR, export_run_policies
+from train.rundir import RUN_POLICIES_DIR
 from train.runlog import Interrupted
 from train.safeio import UnsafeFileError, load_json
 
@@ -210,6 +210,7 @@ def _train(jobs: list[Job], opened: list) -> bool:
     """Train ``jobs`` (one trainer; packed when several) from their opened run directories; write each done
     marker when the runs reach their budget. Returns False when a signal stopped them (with checkpoints).
     """
+    from train.policy import export_run_policies
     from train.runlog import PROGRESS_FILE, heartbeat_to
     from train.trainer import Trainer
 

@@ -92,9 +92,9 @@ def measure_speed_together(config: dict[str, Any], copies: int) -> Speed:
     """
     if copies <= 1:
         return measure_speed(config)
-    import multiprocessing
+    from train.experiments.executors import worker_context
 
-    with multiprocessing.get_context("spawn").Pool(copies) as pool:
+    with worker_context().Pool(copies) as pool:
         speeds = pool.map(measure_speed, [config] * copies)
     return Speed(*(max(getattr(s, f.name) for s in speeds) for f in fields(Speed)))
 

@@ -171,15 +171,15 @@ def test_concurrent_task_subsets_keep_every_entry_of_experiment_json(tmp_path, m
     assert info["tasks_run"] == list(exp.tasks)
 
 
-def _children(pid: int) -> set[int]:
-    """The processes that any thread of ``pid`` started."""
+def _descendants(pid: int) -> set[int]:
+    """The processes that any thread of ``pid`` started, and theirs (workers are a fork server's children)."""
     kids = set()
     for task in Path(f"/proc/{pid}/task").glob("*"):
         try:
             kids |= {int(c) for c in (task / "children").read_text().split()}
         except FileNotFoundError:
             pass
-    return kids
+    return kids.union(*(_descendants(k) for k in kids))
 
 
 def _state(pid: int) -> str | None:
@@ -218,7 +218,7 @@ def test_workers_stop_when_the_sweep_dies_and_start_nothing_queued(tmp_path, sig
             assert sweep.poll() is None, f"the sweep ended early: {log.read_text()}"
             assert time.monotonic() < deadline, "no condition started training within 120 s"
             time.sleep(0.1)
-        workers = _children(sweep.pid)
+        workers = _descendants(sweep.pid)
         assert workers, "the sweep has no worker process"
         sweep.send_signal(sig)
         sweep.wait(timeout=60)
@@ -242,30 +242,37 @@ def test_workers_stop_when_the_sweep_dies_and_start_nothing_queued(tmp_path, sig
     assert (out / "rnd" / "factory" / started[0] / CHECKPOINT_NAME).exists()
 
 
-_WATCH = """
-import signal, sys, threading, time
+_GONE_SWEEP = """
+import subprocess
 from train.experiments import executors
+sweep = subprocess.Popen(["sleep", "0"])
+executors._follow_sweep(sweep.pid)
+sweep.wait()  # the sweep is gone
+"""
+"""A worker's view of a sweep that has exited (a short-lived child followed as the sweep)."""
+
+_WATCH = _GONE_SWEEP + """
+import signal, sys, threading, time
 from train.runlog import stop_on_signal
-executors._PARENT, executors.PARENT_POLL_S = -1, 0.05  # a sweep pid that is not this process's parent: gone
+executors.PARENT_POLL_S = 0.05
 terms = []
 with stop_on_signal() as stop:
     signal.signal(signal.SIGTERM, lambda *_: (terms.append(1), stop.set()))
     if sys.argv[1] == "already-stopping":
-        stop.set()  # as after the kernel's parent-death signal
-    threading.Thread(target=executors._watch_parent, daemon=True).start()
+        stop.set()  # as after the sweep's SIGTERM or a Ctrl-C
+    threading.Thread(target=executors._watch_sweep, daemon=True).start()
     time.sleep(1.0)
 print(len(terms))
 """
 
 
-_HANG = """
+_HANG = _GONE_SWEEP + """
 import threading
-from train.experiments import executors
 from train.runlog import stop_on_signal
-executors._PARENT, executors.PARENT_POLL_S, executors.ORPHAN_GRACE_S = -1, 0.05, 0.5  # the sweep is gone
+executors.PARENT_POLL_S, executors.ORPHAN_GRACE_S = 0.05, 0.5
 with stop_on_signal() as stop:
-    stop.set()  # the parent-death signal arrived: the worker is stopping
-    threading.Thread(target=executors._watch_parent, daemon=True).start()
+    stop.set()  # a signal arrived: the worker is stopping
+    threading.Thread(target=executors._watch_sweep, daemon=True).start()
     lock = threading.Lock()
     lock.acquire()
     lock.acquire()  # but its stop hangs on a lock no one releases

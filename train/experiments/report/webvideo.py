@@ -65,8 +65,7 @@ def render_missing_videos(exp: ExperimentResults, root: Path | None = None) -> l
     one, its exported best policy (``policies/best.npz``); a run reached through a symbolic link below ``root``
     (the tree the report was given) is not filmed.
     """
-    from train.policy import RUN_POLICIES_DIR
-    from train.rundir import RunDirError
+    from train.rundir import RUN_POLICIES_DIR, RunDirError
 
     made = []
     steps = SMOKE_FILM_STEPS if exp.info.get("budget") == "smoke" else None
