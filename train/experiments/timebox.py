@@ -17,7 +17,8 @@ from typing import Any
 from train.config import TrainConfig
 
 MARGIN = 1.1
-"""Factor on the predicted training time (checkpoints, a busier machine later on)."""
+"""Factor on the predicted training time when sizing runs (checkpoints, a busier machine later on); the
+prediction printed is the estimate itself."""
 
 MIN_EVALUATIONS = 2
 """A sized run takes at least this many evaluation intervals (a curve needs points)."""
@@ -42,8 +43,10 @@ class Speed:
         return (f"{n / self.random_epoch_s:.0f} steps/s per seed exploring, {n / self.greedy_epoch_s:.0f} acting "
                 f"greedily ({k} seeds in one process), {self.evaluation_s:.1f} s per evaluation")
 
-    def run_seconds(self, cfg: TrainConfig) -> float:
-        """Predicted seconds of one job of ``cfg`` (start-up, every epoch at its epsilon, every evaluation)."""
+    def run_seconds(self, cfg: TrainConfig, margin: float = MARGIN) -> float:
+        """Predicted seconds of one job of ``cfg`` (start-up, every epoch at its epsilon, every evaluation),
+        the training's part times ``margin``.
+        """
         dqn, k = cfg.dqn, cfg.run.seeds
         greedy_weight = 1.0 - dqn.eps_end ** k  # an epoch calls the network unless every seed explores
         total = self.startup_s
@@ -52,7 +55,7 @@ class Speed:
             share = (1.0 - dqn.epsilon(step) ** k) / greedy_weight if greedy_weight > 0 else 1.0
             total += self.random_epoch_s + (self.greedy_epoch_s - self.random_epoch_s) * share
         evaluations = cfg.num_epochs // cfg.eval_epochs + 1
-        return total * MARGIN + evaluations * self.evaluation_s
+        return total * margin + evaluations * self.evaluation_s
 
 
 def _timed_epochs(cfg: TrainConfig, epochs: int, evaluate: bool = False) -> tuple[float, float, float]:
@@ -145,7 +148,9 @@ def timebox(jobs: list, seconds_left: float, workers: int, say) -> list:
     cfg = TrainConfig.from_dict(jobs[0].config)
     left = seconds_left - (time.perf_counter() - began) - REPORT_RESERVE_S
     steps = fit_steps(speed, jobs[0].config, len(jobs), workers, left)
-    predicted = math.ceil(len(jobs) / max(1, min(workers, len(jobs)))) * speed.run_seconds(cfg.replace(steps=steps))
+    waves = math.ceil(len(jobs) / max(1, min(workers, len(jobs))))
+    predicted = waves * speed.run_seconds(cfg.replace(steps=steps), margin=1.0)
     say(f"speed: {speed.describe(cfg)}; {len(jobs)} runs, {min(workers, len(jobs))} at a time, in {left / 60:.1f} "
-        f"min: {steps:,} steps per seed (predicted {predicted / 60:.1f} min; the budget's own: {cfg.run.steps:,})")
+        f"min: {steps:,} steps per seed (predicted {predicted / 60:.1f} min, sized with a {MARGIN - 1:.0%} margin; "
+        f"the budget's own: {cfg.run.steps:,})")
     return resize_jobs(jobs, steps)
