@@ -75,7 +75,7 @@ def _follow_sweep(pid: int) -> None:
         pass
 
 
-PARENT_POLL_S = 1.0
+SWEEP_POLL_S = 1.0
 """How often a local worker checks that its sweep still lives (where it has no pidfd to wait on)."""
 
 ORPHAN_GRACE_S = 300.0
@@ -91,7 +91,7 @@ def _watch_sweep() -> None:
     ends at `ORPHAN_GRACE_S`: faulthandler's own thread, which needs no lock of the interpreter's, dumps the
     stacks and exits, so no orphan outlives its sweep for long.
     """
-    while not _sweep_gone(PARENT_POLL_S):
+    while not _sweep_gone(SWEEP_POLL_S):
         pass
     faulthandler.dump_traceback_later(ORPHAN_GRACE_S, exit=True, file=sys.stderr)
     if not stop_requested():

@@ -254,7 +254,7 @@ sweep.wait()  # the sweep is gone
 _WATCH = _GONE_SWEEP + """
 import signal, sys, threading, time
 from train.runlog import stop_on_signal
-executors.PARENT_POLL_S = 0.05
+executors.SWEEP_POLL_S = 0.05
 terms = []
 with stop_on_signal() as stop:
     signal.signal(signal.SIGTERM, lambda *_: (terms.append(1), stop.set()))
@@ -269,7 +269,7 @@ print(len(terms))
 _HANG = _GONE_SWEEP + """
 import threading
 from train.runlog import stop_on_signal
-executors.PARENT_POLL_S, executors.ORPHAN_GRACE_S = 0.05, 0.5
+executors.SWEEP_POLL_S, executors.ORPHAN_GRACE_S = 0.05, 0.5
 with stop_on_signal() as stop:
     stop.set()  # a signal arrived: the worker is stopping
     threading.Thread(target=executors._watch_sweep, daemon=True).start()
