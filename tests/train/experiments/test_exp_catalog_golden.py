@@ -7,6 +7,8 @@ settings that differ from the defaults. Regenerated once, on purpose, for issue 
 experiments (`train.experiments.released`) and factory's shipped subgoal-mode arms naming the flat ladder
 (``reward_ladder=flat``), now that the released ladder is factory's default; every other job is unchanged.
 ``hunting-inventory`` was appended later (its entry dumped from its own code; nothing else changed).
+``hunting-behaviour`` gained two arms with the released network (``eps-1-inv8``, ``eps-floor-0.3-inv8``) and a
+sentence; its entry was dumped again from its code, its two earlier arms' jobs checked unchanged first.
 """
 
 from __future__ import annotations
