@@ -69,9 +69,7 @@ def _follow_sweep(pid: int) -> None:
     _SWEEP, _SWEEP_FD = pid, None
     try:
         _SWEEP_FD = os.pidfd_open(pid)
-    except ProcessLookupError:
-        os._exit(1)
-    except (AttributeError, OSError):  # not Linux 5.3+: poll the pid
+    except (AttributeError, OSError):  # not Linux 5.3+, or the sweep is gone already: the pid is polled
         pass
 
 

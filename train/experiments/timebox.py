@@ -29,7 +29,8 @@ class Speed:
     """What one job costs on this machine, measured."""
 
     startup_s: float
-    """Seconds from an empty process to the first trained epoch (imports, environment compilation)."""
+    """Seconds from a new worker to the first trained epoch (environment compilation; the imports where the
+    worker's process had not done them: workers fork from a server that has, `worker_context`)."""
     random_epoch_s: float
     """Seconds per epoch while every action is random (exploration epsilon 1)."""
     greedy_epoch_s: float
