@@ -14,7 +14,8 @@ from train.experiments.catalog import BUDGETS, EXPERIMENTS, get_experiment
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """``ecorl run EXPERIMENT [--task T ...] [--budget B] [--executor local|ray] ...``."""
-    listing = "\n".join(f"  {e.name:<24s}{e.paper}: {e.title}" for e in EXPERIMENTS.values())
+    width = max(map(len, EXPERIMENTS)) + 2
+    listing = "\n".join(f"  {e.name:<{width}s}{e.paper}: {e.title}" for e in EXPERIMENTS.values())
     parser = subparsers.add_parser(
         "run", help="run a named experiment of the paper (resumable sweep)",
         formatter_class=argparse.RawDescriptionHelpFormatter,

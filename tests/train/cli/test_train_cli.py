@@ -104,3 +104,10 @@ def test_train_prints_the_tuned_settings(tmp_path, capsys):
                  "--out", str(tmp_path / "run")])
     assert code == 0
     assert "tuned settings, as the experiments do: --lr 0.0003" in capsys.readouterr().err
+
+
+def test_run_help_lists_every_experiment_apart_from_its_description():
+    from train.experiments.catalog import EXPERIMENTS
+    help_text = build_parser().parse_args(["run"]).command_parser.format_help()
+    for name, experiment in EXPERIMENTS.items():
+        assert f"  {name}  " in help_text, f"{name} runs into its description in `ecorl run --help`"
