@@ -4,9 +4,11 @@
   derived from the env packages' registrations, and the env contract it relies on);
 * `train.agent`: the maths, no I/O: `network` (batched two-branch Q-network with a hand-written backward
   pass), `dqn` (double-DQN step, Adam, clipping), `replay` (compact replay), `rnd`;
-* the training loop and its files: `train.trainer` (K seeds of one condition in one process),
-  `train.evaluate` (validation protocol), `train.runlog` (progress, metrics, TensorBoard), `train.rundir`
-  (run directory), `train.checkpoint`, `train.fileio` (atomic writes, locks), `train.policy` (policy files);
+* the training loop, in its own rooms: `train.trainer` (K seeds of one condition, or several conditions
+  packed, in one process; `parts`, `packing`, `memory` beside it), `train.evaluation` (the validation
+  protocol, the evaluation grid), `train.runlog` (progress, metrics, TensorBoard, the stop signal),
+  `train.storage` (what a run keeps on disk: run directory, checkpoint, atomic writes and locks, reading
+  untrusted files) and `train.policy` (policy files);
 * `train.experiments`: the research pipeline: `catalog` (the paper's experiments as data), `sweep`, `jobs`
   and `executors` (running them, resumably, locally or on Ray), `table1` (Table 1), `report` (statistics,
   figures, pages), `video`, `demo`;

@@ -9,7 +9,7 @@ import numpy as np
 
 from ecology import corner_share
 from train.config import TrainConfig
-from train.rundir import RunDir
+from train.storage.rundir import RunDir
 
 __all__ = ["Part"]
 

@@ -22,13 +22,13 @@ import numpy as np
 import torch
 
 from train.agent.network import QNetwork
-from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.config import TrainConfig
-from train.evaluate import EvalResult, Evaluator, evaluation_kwargs
-from train.fileio import atomic_file
-from train.rundir import EXPERIMENT_FILE, RUN_POLICIES_DIR, RunDir, RunDirError
-from train.safeio import load_json, loads_json, open_regular, read_npy, read_text, regular_file
-from train.statecheck import check_counter
+from train.evaluation.protocol import EvalResult, Evaluator, evaluation_kwargs
+from train.storage.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
+from train.storage.fileio import atomic_file
+from train.storage.rundir import EXPERIMENT_FILE, RUN_POLICIES_DIR, RunDir, RunDirError
+from train.storage.safeio import load_json, loads_json, open_regular, read_npy, read_text, regular_file
+from train.storage.statecheck import check_counter
 from train.tasks import get_task, probe
 
 POLICY_DIR = Path(__file__).resolve().parents[1] / "assets" / "policies"

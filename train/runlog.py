@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from train.config import TrainConfig
-from train.rundir import RunDir
-from train.safeio import real_dir
+from train.storage.rundir import RunDir
+from train.storage.safeio import real_dir
 
 
 def postfix(rows: list[dict[str, Any]], num_agents: int) -> dict[str, str]:
@@ -77,7 +77,7 @@ class Heartbeat:
 
     def write(self) -> None:
         """Write the heartbeat now."""
-        from train.fileio import atomic_text
+        from train.storage.fileio import atomic_text
 
         self.last = now = time.monotonic()
         rate = (self.step - self.start_step) / max(now - self.began, 1e-9)

@@ -26,13 +26,13 @@ import torch
 from train.agent.learner import STREAMS, DQNLearner, Learner, RowSettings, seed_streams
 from train.agent.network import QNetwork
 from train.config import TrainConfig
-from train.evaluate import Evaluator, evaluation_kwargs
+from train.evaluation.protocol import Evaluator, evaluation_kwargs
 from train.memory import check_memory
 from train.packing import check_device, check_packable
 from train.parts import Part
-from train.rundir import ADDED_COLUMNS, RunDir, RunDirError
 from train.runlog import RunLogger, postfix, progress_bar, stop_on_signal
-from train.statecheck import check_state, steps_left
+from train.storage.rundir import ADDED_COLUMNS, RunDir, RunDirError
+from train.storage.statecheck import check_state, steps_left
 from train.tasks import (
     EnvInfo,
     Task,
@@ -48,7 +48,7 @@ from train.tasks import (
 __all__ = ["CHECKPOINT_VERSION", "STREAMS", "Part", "Trainer", "resolve", "seed_streams"]
 
 CHECKPOINT_VERSION = 2
-"""Version of a run's checkpoint state (the layout inside the checkpoint file, `train.checkpoint`)."""
+"""Version of a run's checkpoint state (the layout inside the checkpoint file, `train.storage.checkpoint`)."""
 
 
 def resolve(cfg: TrainConfig, task: Task, info: EnvInfo) -> TrainConfig:

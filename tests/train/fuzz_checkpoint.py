@@ -8,7 +8,7 @@ the test run)::
     python fuzz_checkpoint.py cli CASES.json      (each case: [label, ecorl arguments])
 
 For each mutation: copy RUN_DIR, change one value of its checkpoint (a world field, a replay pointer, a
-random-generator state, a weight, a counter, ...), rewrite it with `train.checkpoint.write_checkpoint` (which
+random-generator state, a weight, a counter, ...), rewrite it with `train.storage.checkpoint.write_checkpoint` (which
 recomputes every digest), then ``ecorl train TASK --resume --steps STEPS``. One JSON line per case on stdout:
 its label, the exit status and what it printed on stderr (or the exception that escaped).
 """
@@ -140,7 +140,7 @@ def run_cli(label: str, argv: list[str]) -> dict:
 
 def resume(run_dir: Path, steps: int, label: str) -> dict:
     """``ecorl train TASK --resume --out RUN_DIR --steps STEPS``."""
-    from train.checkpoint import read_checkpoint
+    from train.storage.checkpoint import read_checkpoint
 
     try:
         task = read_checkpoint(run_dir / "checkpoint.npz", keys=[])["config"]["env"]["task"]
@@ -152,7 +152,7 @@ def resume(run_dir: Path, steps: int, label: str) -> dict:
 
 def run_case(source: Path, work: Path, path: tuple, kind: str, rng: np.random.Generator, steps: int) -> dict:
     """Mutate one copy of ``source`` and resume it; what happened."""
-    from train.checkpoint import read_checkpoint, write_checkpoint
+    from train.storage.checkpoint import read_checkpoint, write_checkpoint
 
     shutil.rmtree(work, ignore_errors=True)
     shutil.copytree(source, work)
@@ -175,7 +175,7 @@ def main(argv: list[str]) -> int:
             print(json.dumps(resume(Path(run_dir), int(argv[1]), run_dir)), flush=True)
         return 0
     source, work, seed, count, steps = Path(argv[0]), Path(argv[1]), int(argv[2]), int(argv[3]), int(argv[4])
-    from train.checkpoint import read_checkpoint
+    from train.storage.checkpoint import read_checkpoint
 
     rng = np.random.default_rng(seed)
     state = read_checkpoint(source / "checkpoint.npz")

@@ -9,7 +9,7 @@ import pytest
 
 from ecology import validation_seeds
 from gridtasks.codes import Code
-from train.evalgrid import SPLITS, evaluate_grid, fresh_seeds, needed_in_first_view, wilson
+from train.evaluation.grid import SPLITS, evaluate_grid, fresh_seeds, needed_in_first_view, wilson
 from train.policy import load_policy, shipped_policy
 from train.tasks import get_task, make_vector_env
 

@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from train.config import TrainConfig
-from train.evaluate import Evaluator
+from train.evaluation.protocol import Evaluator
 from train.tasks import get_task, probe
 
 
@@ -100,7 +100,7 @@ def test_greedy_actions_are_counted_per_agent_over_the_live_steps():
 
 
 def test_the_evaluation_protocol_can_move_the_test_mdp_as_the_released_validation_did():
-    from train.evaluate import evaluation_kwargs
+    from train.evaluation.protocol import evaluation_kwargs
     from train.trainer import Trainer
 
     test = {"dynamism": 0.0, "horizon": 200, "deer_count": 2, "replenish": False}

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from gridtasks.records import MAX_COUNT
-from train.checkpoint import read_checkpoint, write_checkpoint
 from train.cli import main
-from train.statecheck import steps_left
+from train.storage.checkpoint import read_checkpoint, write_checkpoint
+from train.storage.statecheck import steps_left
 
 REPO = Path(__file__).resolve().parents[2]
 FUZZ = Path(__file__).with_name("fuzz_checkpoint.py")

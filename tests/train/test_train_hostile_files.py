@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from train.checkpoint import read_checkpoint, write_checkpoint
 from train.cli import main
-from train.fileio import is_temporary, temporary_name
+from train.storage.checkpoint import read_checkpoint, write_checkpoint
+from train.storage.fileio import is_temporary, temporary_name
 
 REPO = Path(__file__).resolve().parents[2]
 FUZZ = Path(__file__).with_name("fuzz_checkpoint.py")
@@ -247,7 +247,7 @@ def test_a_kill_inside_the_first_checkpoint_write_is_no_dead_end(tmp_path, capsy
 
     run = tmp_path / "run"
     args = ["train", "salad", "--steps", "400", *TINY, "--out", str(run)]
-    run_killed(args, "train.checkpoint", "_write_member", "args[1] == 'replay/obs'", nth=1)
+    run_killed(args, "train.storage.checkpoint", "_write_member", "args[1] == 'replay/obs'", nth=1)
     assert not (run / "checkpoint.npz").exists()
     assert main([*args, "--resume"]) == 2
     assert "without --resume" in one_line(capsys)
@@ -318,7 +318,7 @@ def test_a_full_disk_is_one_line_under_train_and_run(tmp_path, monkeypatch, caps
     from train.experiments.jobs import execute
     from train.experiments.sweep import plan
 
-    monkeypatch.setattr("train.fileio._replace", _disk_full)
+    monkeypatch.setattr("train.storage.fileio._replace", _disk_full)
     assert main(["train", "salad", "--steps", "400", *TINY, "--out", str(tmp_path / "run")]) == 2
     assert "No space left on device" in one_line(capsys)
     job = plan(get_experiment("rnd"), "smoke", tmp_path / "sweep", ["factory"])[0]
@@ -363,7 +363,7 @@ def test_no_write_follows_a_link_inside_the_tree_it_was_handed(tmp_path):
     from train.experiments.catalog import get_experiment
     from train.experiments.report import make_report
     from train.experiments.sweep import plan
-    from train.safeio import UnsafeFileError, no_link_below
+    from train.storage.safeio import UnsafeFileError, no_link_below
 
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
@@ -390,8 +390,8 @@ def test_four_inputs_that_raised_tracebacks_are_one_line_answers(tmp_path, capsy
     from train import cli
     from train.experiments.report.runs import ReportError, read_columns
     from train.policy import Policy
-    from train.rundir import read_visits
-    from train.safeio import UnsafeFileError
+    from train.storage.rundir import read_visits
+    from train.storage.safeio import UnsafeFileError
 
     metrics = tmp_path / "metrics.csv"  # a step beyond any counter: was OverflowError
     metrics.write_text(f"step,seed,success\n5000,0,0.1\n{2**63},1,0.0\n5000,1,0.2\n")

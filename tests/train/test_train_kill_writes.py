@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from run_metrics import metrics_without_timing
 
-from train.checkpoint import CHECKPOINT_NAME, read_checkpoint
 from train.cli import main
-from train.fileio import is_temporary
 from train.policy import load_policy_file
+from train.storage.checkpoint import CHECKPOINT_NAME, read_checkpoint
+from train.storage.fileio import is_temporary
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -64,7 +64,7 @@ def test_kill_during_a_checkpoint_write_keeps_the_previous_one_and_resumes_exact
     reference, killed = tmp_path / "reference", tmp_path / "killed"
     assert main(train_args(task, reference)) == 0
     # the third checkpoint (step 800) dies while its replay buffer streams into the temporary file
-    run_killed(train_args(task, killed), "train.checkpoint", "_write_member", "args[1] == 'replay/obs'", nth=3)
+    run_killed(train_args(task, killed), "train.storage.checkpoint", "_write_member", "args[1] == 'replay/obs'", nth=3)
     assert any(is_temporary(p.name) for p in killed.iterdir())  # the half-written temporary
     assert read_checkpoint(killed / CHECKPOINT_NAME, keys=[])["step"] == 400  # the previous one, intact
     assert main([*train_args(task, killed), "--resume"]) == 0
@@ -86,7 +86,7 @@ def test_kill_during_a_policy_export_keeps_the_previous_file(finished_run, tmp_p
     policy = tmp_path / "policy.npz"
     assert main(["export", str(finished_run), "--out", str(policy), "--agent", "0"]) == 0
     before = policy.read_bytes()
-    run_killed(["export", str(finished_run), "--out", str(policy), "--agent", "0"], "train.fileio", "_replace",
+    run_killed(["export", str(finished_run), "--out", str(policy), "--agent", "0"], "train.storage.fileio", "_replace",
                "str(args[1]).endswith('policy.npz')")
     assert policy.read_bytes() == before
     assert load_policy_file(policy).meta["step"] == 400
@@ -105,7 +105,7 @@ def test_kill_during_a_report_keeps_the_previous_report(tmp_path):
     before = {name: (root / name).read_bytes() for name in ("report.md", "index.html")}
     for name in before:
         (root / "figures" / "rnd_curves.png").unlink(missing_ok=True)
-        run_killed(["report", str(root), "--no-videos"], "train.fileio", "_replace",
+        run_killed(["report", str(root), "--no-videos"], "train.storage.fileio", "_replace",
                    f"str(args[1]).endswith('{name}')")
         assert (root / name).read_bytes() == before[name]
     assert (root / "figures" / "rnd_curves.png").stat().st_size > 0  # written (atomically) before the kill

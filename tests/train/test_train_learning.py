@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from train.config import TrainConfig
-from train.evaluate import Evaluator
+from train.evaluation.protocol import Evaluator
 from train.trainer import Trainer
 
 

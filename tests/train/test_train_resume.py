@@ -17,7 +17,7 @@ import pytest
 
 from train.cli import main
 from train.config import TrainConfig
-from train.rundir import ADDED_COLUMNS, RunDirError, check_same_run
+from train.storage.rundir import ADDED_COLUMNS, RunDirError, check_same_run
 from train.trainer import Trainer
 
 REPO = Path(__file__).resolve().parents[2]
@@ -199,7 +199,7 @@ def test_a_checkpoint_from_before_the_collapse_columns_still_resumes(tmp_path):
 
 def test_a_diverged_seed_resumes_and_neither_blocks_the_others_nor_is_exported(tmp_path):
     from train.policy import export_run_policies, load_policy
-    from train.rundir import RunDir
+    from train.storage.rundir import RunDir
 
     cfg = SMALL.replace(seeds=3, reset_free=True, steps=600)
     run = tmp_path / "run"

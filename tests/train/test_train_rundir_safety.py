@@ -42,7 +42,7 @@ def finished(tmp_path_factory) -> Path:
 
 def test_a_second_writer_is_refused_naming_the_holder(finished, capsys):
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time; from train.fileio import FileLock; "
+        [sys.executable, "-c", "import sys, time; from train.storage.fileio import FileLock; "
          "lock = FileLock(sys.argv[1], 'x', 'y').acquire(); print('locked', flush=True); time.sleep(60)",
          str(finished / ".lock")], cwd=REPO, stdout=subprocess.PIPE, text=True)
     try:
@@ -58,7 +58,7 @@ def test_a_second_writer_is_refused_naming_the_holder(finished, capsys):
 
 
 def test_the_lock_is_free_again_once_the_writer_is_gone(finished, capsys):
-    holder = subprocess.run([sys.executable, "-c", "import sys; from train.fileio import FileLock; "
+    holder = subprocess.run([sys.executable, "-c", "import sys; from train.storage.fileio import FileLock; "
                              "FileLock(sys.argv[1], 'x', 'y').acquire()", str(finished / ".lock")], cwd=REPO)
     assert holder.returncode == 0
     assert main(["train", "salad", "--resume", "--out", str(finished)]) == 0  # finished already: nothing to do
@@ -157,7 +157,7 @@ def test_tensorboard_shows_each_step_once_after_a_resume(tmp_path, monkeypatch):
     assert _train(run, "--tensorboard", "--checkpoint-every", "200") == 0
     assert main(["train", "salad", "--resume", "--steps", "800", "--checkpoint-every", "200", "--out", str(run)]) == 0
     # a process killed after logging step 800 but before its checkpoint: its checkpoint says 600
-    from train.checkpoint import read_checkpoint, write_checkpoint
+    from train.storage.checkpoint import read_checkpoint, write_checkpoint
 
     state = read_checkpoint(run / "checkpoint.npz")
     state.update(step=600, epoch=state["epoch"] - 1, rows=[r for r in state["rows"] if r["step"] <= 600])

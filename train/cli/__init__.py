@@ -71,6 +71,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _file_errors() -> tuple[type[BaseException], ...]:
     """The exception types that mean a crafted or unusable file (from the modules already imported)."""
-    names = (("train.safeio", "UnsafeFileError"), ("train.rundir", "RunDirError"),
-             ("train.checkpoint", "CheckpointError"))
+    names = (("train.storage.safeio", "UnsafeFileError"), ("train.storage.rundir", "RunDirError"),
+             ("train.storage.checkpoint", "CheckpointError"))
     return tuple(getattr(sys.modules[module], name) for module, name in names if module in sys.modules)

@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 
 from train.cli.common import positive, probability, user_errors
-from train.rundir import RunDirError
+from train.storage.rundir import RunDirError
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -65,7 +65,7 @@ def handle_grid(args: argparse.Namespace, policy) -> int:
     """Print (and with --out write as CSV) the policy's evaluation grid."""
     import csv
 
-    from train.evalgrid import GRID_COLUMNS, evaluate_grid, format_grid
+    from train.evaluation.grid import GRID_COLUMNS, evaluate_grid, format_grid
 
     if args.fresh is not None and args.fresh < 0:
         raise ValueError(f"--fresh must be 0 or more layouts, got {args.fresh}")

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from train.cli.common import user_errors
-from train.rundir import RunDirError
+from train.storage.rundir import RunDirError
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:

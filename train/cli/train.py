@@ -21,7 +21,7 @@ def resume_config(out: Path, task: str, given: dict[str, Any]) -> TrainConfig:
     A given setting that would change the run's results and differs from the checkpoint's is refused, and so
     is a ``--steps`` below the step the run stands at (`RunDirError`, one line).
     """
-    from train.rundir import RunDir, RunDirError
+    from train.storage.rundir import RunDir, RunDirError
 
     saved, step = RunDir(out).saved_config()
     if task != saved.env.task:
@@ -100,8 +100,8 @@ def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Build the config and the trainer, then train; print a one-line summary per evaluation at the end."""
-    from train.rundir import RunDirError
     from train.runlog import Interrupted
+    from train.storage.rundir import RunDirError
     from train.trainer import Trainer
 
     with user_errors(RunDirError, ValueError, TypeError, KeyError, OSError):

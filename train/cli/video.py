@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from train.cli.common import nonnegative, positive, probability, user_errors
-from train.rundir import RunDirError
+from train.storage.rundir import RunDirError
 
 VIDEO_DIR = Path("results") / "videos"
 """Where a film of a policy file or a random policy goes unless --out says otherwise (results/ is git-ignored)."""

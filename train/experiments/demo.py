@@ -50,7 +50,7 @@ def run_demo(out: Path, steps: int = 150, seed: int = 0) -> list[Path]:
     from tqdm import tqdm
 
     from train.experiments.video import write_h264
-    from train.fileio import atomic_write
+    from train.storage.fileio import atomic_write
 
     out.mkdir(parents=True, exist_ok=True)
     written, stills = [], []

@@ -17,10 +17,10 @@ from typing import Any
 
 from train.config import TrainConfig
 from train.experiments import table1
-from train.fileio import atomic_text, is_temporary
-from train.rundir import RUN_POLICIES_DIR
 from train.runlog import Interrupted
-from train.safeio import UnsafeFileError, load_json
+from train.storage.fileio import atomic_text, is_temporary
+from train.storage.rundir import RUN_POLICIES_DIR
+from train.storage.safeio import UnsafeFileError, load_json
 
 DONE_FILE = "done.json"
 """Marker of a finished run (atomically written, with its step budget)."""
@@ -28,7 +28,7 @@ DONE_FILE = "done.json"
 
 UNSTARTED_FILES = ("config.json", "progress.json")
 """What a run stopped before its first checkpoint leaves (besides its lock and interrupted temporaries,
-`train.fileio.is_temporary`); cleared before it starts again. Anything else is a result, never deleted
+`train.storage.fileio.is_temporary`); cleared before it starts again. Anything else is a result, never deleted
 unless the job is restarted."""
 RESULT_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "tensorboard", "progress.json",
                 RUN_POLICIES_DIR, DONE_FILE)
@@ -114,7 +114,7 @@ def job_is_done(job: Job) -> bool:
     cfg = TrainConfig.from_dict(job.config)
     if done.get("total_steps", -1) < cfg.total_steps:
         return False  # a longer budget was asked for: the run is resumed from its checkpoint
-    from train.rundir import RunDir, check_same_run
+    from train.storage.rundir import RunDir, check_same_run
 
     saved = Path(job.run_dir) / "config.json"
     if saved.exists():
@@ -134,8 +134,8 @@ def _clear_unstarted(job: Job) -> None:
     ``job.restart`` also its results. Results without a checkpoint are otherwise kept and reported
     (`FinishedWithoutCheckpoint`); files ecorl did not write are never touched.
     """
-    from train.checkpoint import CHECKPOINT_NAME
-    from train.rundir import LOCK_NAME, RunDirError
+    from train.storage.checkpoint import CHECKPOINT_NAME
+    from train.storage.rundir import LOCK_NAME, RunDirError
 
     run_dir = Path(job.run_dir)
     if not run_dir.exists():
@@ -176,7 +176,7 @@ def _error_result(job: Job, err: BaseException, began: float) -> JobResult:
     """What an exception means for a job: interrupted (the last checkpoint stands), kept (results without a
     checkpoint), or failed (one line for bad input or a full disk, the traceback for a bug).
     """
-    from train.rundir import RunDirError
+    from train.storage.rundir import RunDirError
 
     seconds = time.perf_counter() - began
     if isinstance(err, Interrupted):  # inside an evaluation, or a second signal
@@ -192,7 +192,7 @@ def _open_run(job: Job):
     """Lock the job's run directory (one writer per run: a concurrent sweep is refused) and say whether it
     resumes; a run killed before its first checkpoint is cleared. Returns (RunDir, resume).
     """
-    from train.rundir import RunDir
+    from train.storage.rundir import RunDir
 
     run = RunDir(job.run_dir)
     run.lock()
@@ -283,7 +283,7 @@ def execute_pack(pack: Pack) -> list[JobResult]:
 
 def _by_step(jobs: list[Job]) -> list[list[Job]]:
     """Jobs grouped by the step their checkpoint stands at (0 for a fresh run): one packed trainer each."""
-    from train.rundir import RunDir
+    from train.storage.rundir import RunDir
 
     groups: dict[int, list[Job]] = {}
     for job in jobs:

@@ -36,9 +36,9 @@ import torch
 
 from train.config import TrainConfig
 from train.experiments.jobs import DONE_FILE, read_done
-from train.fileio import atomic_dir, atomic_text
 from train.policy import export_run_policies, load_run
-from train.rundir import (
+from train.storage.fileio import atomic_dir, atomic_text
+from train.storage.rundir import (
     EXPERIMENT_FILE,
     LOCK_NAME,
     MAX_METRIC_ROWS,
@@ -49,7 +49,7 @@ from train.rundir import (
     read_visits,
     write_visits,
 )
-from train.safeio import read_text
+from train.storage.safeio import read_text
 
 SPLIT_SETTINGS = ("seeds", "first_seed")
 """The settings in which the parts of one run differ."""

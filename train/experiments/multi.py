@@ -18,8 +18,8 @@ from train.config import TrainConfig
 from train.experiments.experiment import Experiment
 from train.experiments.jobs import Job, job_is_done
 from train.experiments.sweep import plan
-from train.fileio import atomic_dir, is_temporary
-from train.rundir import LOCK_NAME, RunDir
+from train.storage.fileio import atomic_dir, is_temporary
+from train.storage.rundir import LOCK_NAME, RunDir
 
 __all__ = ["fill_copies", "plan_many", "split_copies"]
 

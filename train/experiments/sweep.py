@@ -3,7 +3,7 @@
 Layout of a results directory::
 
     OUT/<experiment>/experiment.json          what was run (conditions, budget), read by the report
-    OUT/<experiment>/<task>/<condition>/      one trainer run directory (train.rundir), all seeds
+    OUT/<experiment>/<task>/<condition>/      one trainer run directory (train.storage.rundir), all seeds
         policies/best.npz, median.npz         its best and median seed by the last validation score
         done.json                             written atomically when the run has reached its budget
     OUT/measure/<task>/<measurement>/         table.csv, table.md, done.json (Table 1, no training)
@@ -28,14 +28,14 @@ from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
 
-from train.checkpoint import CHECKPOINT_NAME
 from train.config import TrainConfig
 from train.experiments.catalog import Experiment, job_config
 from train.experiments.executors import run_local, run_ray
 from train.experiments.jobs import Job, JobResult, Pack, job_is_done
-from train.fileio import atomic_text
-from train.rundir import EXPERIMENT_FILE
-from train.safeio import load_json, no_link_below, real_dir
+from train.storage.checkpoint import CHECKPOINT_NAME
+from train.storage.fileio import atomic_text
+from train.storage.rundir import EXPERIMENT_FILE
+from train.storage.safeio import load_json, no_link_below, real_dir
 
 EXPERIMENT_LOCK = ".experiment.lock"
 """Lock file serialising updates of experiment.json by concurrent ``ecorl run`` processes."""
@@ -85,7 +85,7 @@ def write_experiment_file(experiment: Experiment, budget_name: str, jobs: Sequen
     """Record what this experiment directory holds, merged (under a lock) with earlier or concurrent runs of
     other task subsets.
     """
-    from train.fileio import FileLock, LockedError
+    from train.storage.fileio import FileLock, LockedError
 
     path = Path(out).resolve() / experiment.name / EXPERIMENT_FILE
     real_dir(path.parent)

@@ -23,7 +23,7 @@ import numpy as np
 
 from ecology import hitting_time, marginal_entropy, parse_schedule
 from train.experiments.choices import DYNAMIC_P, GRID_TASKS, SHAPING_BASE, SHAPING_SCHEDULE
-from train.fileio import atomic_text
+from train.storage.fileio import atomic_text
 
 MEASUREMENTS = ("hitting-time", "entropy")
 """The two measurements of Table 1."""

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from train.fileio import atomic_path, atomic_write
 from train.policy import Policy, load_policy
+from train.storage.fileio import atomic_path, atomic_write
 
 H264_OPTIONS = ("-f", "mp4", "-threads", "1", "-movflags", "+faststart", "-map_metadata", "-1", "-fflags", "+bitexact",
                 "-flags:v", "+bitexact", "-preset", "medium", "-crf", "20")

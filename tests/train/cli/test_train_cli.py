@@ -109,5 +109,5 @@ def test_train_prints_the_tuned_settings(tmp_path, capsys):
 def test_run_help_lists_every_experiment_apart_from_its_description():
     from train.experiments.catalog import EXPERIMENTS
     help_text = build_parser().parse_args(["run"]).command_parser.format_help()
-    for name, experiment in EXPERIMENTS.items():
+    for name in EXPERIMENTS:
         assert f"  {name}  " in help_text, f"{name} runs into its description in `ecorl run --help`"

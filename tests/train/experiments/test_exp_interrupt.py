@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from train.checkpoint import CHECKPOINT_NAME, read_checkpoint
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import DONE_FILE, execute
 from train.experiments.sweep import plan
+from train.storage.checkpoint import CHECKPOINT_NAME, read_checkpoint
 
 REPO = Path(__file__).resolve().parents[3]
 ARGS = ("run", "episodic-vs-reset-free", "--budget", "smoke", "--steps", "4000", "--jobs", "2", "--no-progress")

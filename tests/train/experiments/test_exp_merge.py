@@ -14,7 +14,7 @@ from train.experiments.jobs import job_is_done, read_done
 from train.experiments.merge import merge_seed_runs
 from train.experiments.sweep import plan, write_experiment_file
 from train.policy import load_policy_file
-from train.rundir import RunDirError
+from train.storage.rundir import RunDirError
 from train.trainer import Trainer
 
 RUN = ["run", "episodic-vs-reset-free", "--budget", "smoke", "--task", "salad", "--condition", "static-episodic",

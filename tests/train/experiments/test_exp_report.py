@@ -21,7 +21,7 @@ from train.experiments.report.figures import (
 from train.experiments.report.paper import format_paper, load_paper, paper_value
 from train.experiments.report.runs import load_experiment, read_metrics
 from train.experiments.report.stats import COLLAPSE_SHARE, bootstrap_ci
-from train.rundir import EXPERIMENT_FILE, METRIC_COLUMNS
+from train.storage.rundir import EXPERIMENT_FILE, METRIC_COLUMNS
 
 
 def test_bootstrap_ci_brackets_the_mean():
@@ -220,7 +220,7 @@ def test_the_divergence_rule():
 
 def test_divergence_is_marked_and_old_metrics_without_max_q_still_load(tmp_path):
     from train.experiments.report.runs import read_run
-    from train.rundir import METRIC_COLUMNS as columns
+    from train.storage.rundir import METRIC_COLUMNS as columns
 
     old = tuple(c for c in columns if c != "max_q")
     steps = [5_200, 10_200, 15_200]
@@ -307,8 +307,8 @@ def test_a_task_that_pays_more_per_step_scales_the_divergence_bounds():
 def test_a_planted_results_file_cannot_make_the_report_read_or_gather_without_bound(tmp_path, monkeypatch):
     import train.experiments.report.stats as stats
     from train.experiments.report.runs import MAX_SEEDS, ReportError, read_columns, trusted_info
-    from train.rundir import MAX_METRIC_ROWS, MAX_METRICS_BYTES
-    from train.safeio import UnsafeFileError
+    from train.storage.rundir import MAX_METRIC_ROWS, MAX_METRICS_BYTES
+    from train.storage.safeio import UnsafeFileError
 
     wide = tmp_path / "metrics.csv"
     wide.write_text("step,seed,success\n" + "".join(f"5000,{k},0.0\n" for k in range(MAX_SEEDS + 1)))

@@ -100,7 +100,7 @@ def test_a_headline_page_leads_with_the_shipped_paper_budget_panels(tmp_path, na
     import json
 
     from train.experiments.catalog import get_experiment
-    from train.rundir import EXPERIMENT_FILE
+    from train.storage.rundir import EXPERIMENT_FILE
 
     exp = get_experiment(name)
     root = tmp_path / "results" / name
@@ -124,7 +124,7 @@ def test_the_demo_page_draws_the_live_contrast_on_its_shipped_runs_and_says_if_i
 
     from train.experiments.catalog import get_experiment
     from train.experiments.report.lead import run_summary
-    from train.rundir import EXPERIMENT_FILE
+    from train.storage.rundir import EXPERIMENT_FILE
 
     exp = get_experiment("headline-waypoint")
     root = tmp_path / "results" / exp.name
@@ -190,7 +190,7 @@ def test_the_end_of_run_summary_names_the_task_when_a_folder_holds_several():
     import json
 
     from train.experiments.report.lead import run_summary
-    from train.rundir import EXPERIMENT_FILE
+    from train.storage.rundir import EXPERIMENT_FILE
 
     several = run_summary(REFERENCE_DIR / "dynamism")  # every task shipped so far, factory among them
     one = run_summary(REFERENCE_DIR / "headline")  # salad alone

@@ -9,11 +9,11 @@ import shutil
 import pytest
 
 from train import cli
-from train.checkpoint import CHECKPOINT_NAME
 from train.experiments.catalog import EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
 from train.experiments.report import make_report
-from train.rundir import EXPERIMENT_FILE
+from train.storage.checkpoint import CHECKPOINT_NAME
+from train.storage.rundir import EXPERIMENT_FILE
 
 EXPECTED_FILES = ("config.json", "metrics.csv", "checkpoint.npz", "visits.npy", DONE_FILE)
 

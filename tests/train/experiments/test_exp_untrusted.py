@@ -18,13 +18,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME
 from train.cli import main
 from train.experiments.catalog import get_experiment
 from train.experiments.executors import ORPHAN_GRACE_S
 from train.experiments.jobs import DONE_FILE
 from train.experiments.sweep import plan, write_experiment_file
-from train.rundir import EXPERIMENT_FILE
+from train.storage.checkpoint import CHECKPOINT_NAME, LEGACY_NAME
+from train.storage.rundir import EXPERIMENT_FILE
 
 REPO = Path(__file__).resolve().parents[3]
 

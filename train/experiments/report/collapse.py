@@ -22,8 +22,8 @@ from ecology import corner_cells, corner_share
 from train.experiments.report.figures import heatmap_snapshot_files
 from train.experiments.report.runs import find_experiment_dirs, trusted_info
 from train.experiments.report.stats import collapsed, summarize
-from train.rundir import read_visits
-from train.safeio import load_json
+from train.storage.rundir import read_visits
+from train.storage.safeio import load_json
 
 GRID_ACTIONS = ("west", "east", "north", "south", "pick up", "interact", "place")
 """The grid tasks' actions (`gridtasks.engine.ACTION_NAMES`), named here so the report needs no engine."""

@@ -21,7 +21,7 @@ import numpy as np
 from ecology import corner_cells, corner_share, count_entropy
 from train.experiments.report.figures import heatmap_snapshot_files
 from train.experiments.report.stats import summarize
-from train.rundir import read_visits
+from train.storage.rundir import read_visits
 
 
 def corner_shares(visits: np.ndarray) -> np.ndarray:

@@ -19,8 +19,8 @@ import numpy as np
 from train.experiments.report.paper import paper_value
 from train.experiments.report.runs import ExperimentResults, Run
 from train.experiments.report.stats import CI_LEVEL, COLLAPSE_SHARE, bootstrap_ci
-from train.fileio import atomic_file
-from train.rundir import read_visits
+from train.storage.fileio import atomic_file
+from train.storage.rundir import read_visits
 
 MAX_SEED_LINES = 100
 """Most seeds of a condition drawn as lines of their own (every seed enters the mean and its interval)."""

@@ -18,7 +18,7 @@ from train.experiments.report.figures import condition_colors, plot_curves, pypl
 from train.experiments.report.runs import ExperimentResults, Run, load_experiment
 from train.experiments.report.stats import LEARNED, bootstrap_ci, summarize
 from train.experiments.report.tables import FINAL_COLUMNS, final_rows
-from train.rundir import EXPERIMENT_FILE
+from train.storage.rundir import EXPERIMENT_FILE
 
 LEAD = {"headline": ("headline", "headline-waypoint"), "headline-waypoint": ("headline-waypoint", "headline")}
 """Experiment -> the shipped experiments its page leads with: its own first (drawn with the live runs on it)."""

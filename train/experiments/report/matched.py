@@ -20,7 +20,7 @@ import numpy as np
 
 from train.experiments.report.runs import read_metrics, task_metric
 from train.experiments.report.stats import summarize
-from train.safeio import load_json
+from train.storage.safeio import load_json
 
 
 def run_metric(run_dir: Path) -> tuple[np.ndarray, np.ndarray, str]:

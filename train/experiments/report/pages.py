@@ -54,9 +54,9 @@ from train.experiments.report.tables import (
     milestone_rows,
 )
 from train.experiments.report.webvideo import WebVideo, caption_of, find_videos, render_missing_videos, web_copy
-from train.fileio import atomic_text
-from train.rundir import EXPERIMENT_FILE
-from train.safeio import no_link_below
+from train.storage.fileio import atomic_text
+from train.storage.rundir import EXPERIMENT_FILE
+from train.storage.safeio import no_link_below
 
 
 @dataclass

@@ -15,8 +15,8 @@ from train.config import TrainConfig
 from train.experiments.catalog import BUDGETS, EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
 from train.experiments.report.stats import REWARD_BOUND, blown, diverged
-from train.rundir import EXPERIMENT_FILE, MAX_METRIC_ROWS, MAX_METRICS_BYTES
-from train.safeio import load_json, read_text
+from train.storage.rundir import EXPERIMENT_FILE, MAX_METRIC_ROWS, MAX_METRICS_BYTES
+from train.storage.safeio import load_json, read_text
 
 REFERENCE_DIR = Path(__file__).resolve().parents[3] / "docs" / "results" / "paper"
 """Shipped paper-budget runs (metrics only): a report draws an experiment's quick curves over them."""

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from train.checkpoint import CHECKPOINT_NAME
 from train.experiments.report.runs import ExperimentResults, Run
-from train.fileio import atomic_text, atomic_write, is_temporary
-from train.safeio import UnsafeFileError, load_json, no_link_below, read_bytes, regular_file
+from train.storage.checkpoint import CHECKPOINT_NAME
+from train.storage.fileio import atomic_text, atomic_write, is_temporary
+from train.storage.safeio import UnsafeFileError, load_json, no_link_below, read_bytes, regular_file
 
 SMOKE_FILM_STEPS = 40
 """Steps filmed of a run at the smoke budget (seconds of training, for tests: 40 frames show the film works)."""
@@ -65,7 +65,7 @@ def render_missing_videos(exp: ExperimentResults, root: Path | None = None) -> l
     one, its exported best policy (``policies/best.npz``); a run reached through a symbolic link below ``root``
     (the tree the report was given) is not filmed.
     """
-    from train.rundir import RUN_POLICIES_DIR, RunDirError
+    from train.storage.rundir import RUN_POLICIES_DIR, RunDirError
 
     made = []
     steps = SMOKE_FILM_STEPS if exp.info.get("budget") == "smoke" else None

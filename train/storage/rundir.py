@@ -6,7 +6,7 @@ Layout::
     metrics.csv      one row per evaluation and seed (`METRIC_COLUMNS`)
     visits.npy       (seeds, rows, cols) lifetime visitation counts, [y, x], as of the latest evaluation
     visits/STEP.npy  the same, kept at every evaluation (for heat-maps over training)
-    checkpoint.npz   everything needed to continue the run exactly, as data only (`train.checkpoint`)
+    checkpoint.npz   everything needed to continue the run exactly, as data only (`train.storage.checkpoint`)
     .lock            advisory lock of the process writing the run (its pid while held)
     tensorboard/     optional TensorBoard logs
 
@@ -23,12 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from train.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, CheckpointError, legacy_message, read_checkpoint
-from train.checkpoint import write_checkpoint as _write_checkpoint
 from train.config import TrainConfig
-from train.fileio import FileLock, LockedError, atomic_file, atomic_write, is_temporary
 from train.memory import checkpoint_limit
-from train.safeio import UnsafeFileError, open_regular, read_npy, real_dir
+from train.storage.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, CheckpointError, legacy_message, read_checkpoint
+from train.storage.checkpoint import write_checkpoint as _write_checkpoint
+from train.storage.fileio import FileLock, LockedError, atomic_file, atomic_write, is_temporary
+from train.storage.safeio import UnsafeFileError, open_regular, read_npy, real_dir
 
 __all__ = ["ADDED_COLUMNS", "METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write",
            "check_same_run", "read_visits", "write_visits"]
@@ -162,7 +162,7 @@ class RunDir:
         atomic_write(self.config_path, (json.dumps(cfg.to_dict(), indent=2) + "\n").encode())
 
     def save_checkpoint(self, payload: dict[str, Any]) -> None:
-        """Write ``payload`` as a data-only checkpoint (`train.checkpoint`), atomically."""
+        """Write ``payload`` as a data-only checkpoint (`train.storage.checkpoint`), atomically."""
         _write_checkpoint(self.checkpoint_path, payload)
 
     def read_checkpoint(self, keys: list[str] | None = None, limit: int | None = None) -> dict[str, Any]:
@@ -181,7 +181,7 @@ class RunDir:
 
     def saved_config(self) -> tuple[TrainConfig, int]:
         """The checkpoint's configuration and the step the run stands at (reads no arrays)."""
-        from train.statecheck import check_counter  # torch: only where a checkpoint is opened
+        from train.storage.statecheck import check_counter  # torch: only where a checkpoint is opened
 
         state = self.read_checkpoint(keys=[])
         try:

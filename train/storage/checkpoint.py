@@ -26,8 +26,8 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from train.fileio import atomic_file
-from train.safeio import UnsafeFileError, loads_json, open_regular, read_npy
+from train.storage.fileio import atomic_file
+from train.storage.safeio import UnsafeFileError, loads_json, open_regular, read_npy
 
 FORMAT = 2
 """Version of the checkpoint layout written and read here."""

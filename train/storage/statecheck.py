@@ -155,7 +155,7 @@ def check_state(state: dict[str, Any], trainer: Any, part: int = 0) -> None:
     """Raise ValueError unless ``state`` (a checkpoint's tree) is one that part ``part`` of ``trainer`` may
     load, value by value.
     """
-    from train.rundir import ADDED_COLUMNS, METRIC_COLUMNS
+    from train.storage.rundir import ADDED_COLUMNS, METRIC_COLUMNS
 
     live = trainer.state_dict(part)
     piece = trainer.parts[part]

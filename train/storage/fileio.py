@@ -4,7 +4,7 @@
   ``os.replace`` onto the target. A crash or SIGKILL at any point leaves the old file or the new one, never a
   mix; the temporary is removed when the block raises. Temporary names (`is_temporary`) carry the writer's
   pid and a random token after ``.ecorl-tmp-``, so two writers never share one and no user file matches.
-  The target's directory must be a real directory (`train.safeio.real_dir`), not a link.
+  The target's directory must be a real directory (`train.storage.safeio.real_dir`), not a link.
 * `FileLock`: an exclusive ``fcntl.flock`` on a lock file (opened with ``O_NOFOLLOW``, never truncated),
   taken without waiting; a second holder is refused with the first one's pid. The kernel releases it
   when the process dies, however it dies.
@@ -23,7 +23,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO
 
-from train.safeio import UnsafeFileError, real_dir
+from train.storage.safeio import UnsafeFileError, real_dir
 
 TEMP_MARK = ".ecorl-tmp-"
 """Part of every temporary file name (see `temporary_name`)."""
