@@ -5,6 +5,9 @@ One decision = 5 physics steps + sphere motion and contacts + 7 ray casts + the 
 (3 000 decisions/s on one core)::
 
     OMP_NUM_THREADS=1 taskset -c 0 python benchmarks/bench_foodcollector.py --decisions 50000
+
+``--calls`` times the arena's two ways into Chipmunk (`foodcollector.chipmunk`), alternating in this process:
+its direct calls (the default) against pymunk's public API, round after round, and prints their ratio.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import gymnasium
 import numpy as np
 
 import foodcollector
+from foodcollector import chipmunk
 
 CONDITIONS = {
     "static": {"dynamism": 0.0},
@@ -52,12 +56,39 @@ def bench(knobs: dict, decisions: int, seed: int) -> dict:
             "traced_peak_kib": peak / 1024}
 
 
+def compare_calls(decisions: int, rounds: int, seed: int) -> None:
+    """Decisions/s of `chipmunk.ChipmunkCalls` and `chipmunk.PublicCalls`, alternating, on the dynamic
+    reset-free condition; prints each round and the ratio of the medians.
+    """
+    knobs = CONDITIONS["dynamic + shaped, reset-free"]
+    rates: dict[str, list[float]] = {"direct": [], "public": []}
+    try:
+        for r in range(rounds):
+            for name, calls in (("direct", chipmunk.ChipmunkCalls), ("public", chipmunk.PublicCalls)):
+                chipmunk.CALLS = calls
+                rates[name].append(bench(knobs, decisions, seed + r)["decisions_per_s"])
+    finally:
+        chipmunk.CALLS = chipmunk.ChipmunkCalls
+    for name, values in rates.items():
+        print(f"  {name:6s} calls: {' '.join(f'{v:6.0f}' for v in values)} decisions/s")
+    print(f"  direct / public (medians): {np.median(rates['direct']) / np.median(rates['public']):.2f}x")
+
+
 def main() -> None:
     """Run every condition and print one line each, then the process's peak resident memory."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--decisions", type=int, default=20_000, help="decisions timed per condition")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--calls", action="store_true",
+                        help="compare the arena's direct Chipmunk calls with pymunk's public API instead")
+    parser.add_argument("--rounds", type=int, default=5, help="rounds of --calls (the median is compared)")
     args = parser.parse_args()
+    if args.calls:
+        if chipmunk.CALLS is not chipmunk.ChipmunkCalls:
+            raise SystemExit("this pymunk does not expose Chipmunk's bindings: the arena uses the public API")
+        print(f"food collector, the arena's calls into Chipmunk, {args.decisions} decisions x {args.rounds} rounds")
+        compare_calls(args.decisions, args.rounds, args.seed)
+        return
     print(f"food collector, {args.decisions} random decisions per condition (1 decision = 5 physics steps)")
     for name, knobs in CONDITIONS.items():
         r = bench(knobs, args.decisions, args.seed)

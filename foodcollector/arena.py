@@ -26,6 +26,7 @@ from enum import IntEnum
 import numpy as np
 import pymunk
 
+from foodcollector import chipmunk
 from foodcollector.params import RAY_ANGLES_DEG, FoodCollectorParams
 
 
@@ -127,8 +128,9 @@ class Arena:
 
     def pose(self) -> tuple[float, float, float, float]:
         """The agent's centre and right axis: (x, y, cos angle, sin angle)."""
-        x, y = self.agent.position
-        a = self.agent.angle
+        calls = chipmunk.CALLS
+        x, y = calls.position(self.agent)
+        a = calls.angle(self.agent)
         return x, y, math.cos(a), math.sin(a)
 
     def place_agent(self, x: float, y: float, angle: float, vx: float = 0.0, vy: float = 0.0) -> None:
@@ -152,8 +154,9 @@ class Arena:
 
     def local_velocity(self) -> tuple[float, float]:
         """The agent's velocity in its own frame: (rightward, forward), units/s."""
-        vx, vy = self.agent.velocity
-        a = self.agent.angle
+        calls = chipmunk.CALLS
+        vx, vy = calls.velocity(self.agent)
+        a = calls.angle(self.agent)
         c, s = math.cos(a), math.sin(a)
         return vx * c + vy * s, -vx * s + vy * c
 
@@ -167,13 +170,13 @@ class Arena:
         direction; strafe *replaces* forward (Unity assigns, not adds). The heading used is the one
         before this step's turn; the turn is applied to the body directly.
         """
-        p = self.params
+        p, calls = self.params, chipmunk.CALLS
         body = self.agent
-        vx, vy = body.velocity
+        vx, vy = calls.velocity(body)
         if vx * vx + vy * vy > p.slowdown_speed * p.slowdown_speed:
             vx *= p.slowdown_factor
             vy *= p.slowdown_factor
-        a = body.angle
+        a = calls.angle(body)
         if strafe:
             dv = BRANCH_SIGN[strafe] * p.move_speed
             vx += dv * math.cos(a)
@@ -182,13 +185,13 @@ class Arena:
             dv = BRANCH_SIGN[forward] * p.move_speed
             vx -= dv * math.sin(a)
             vy += dv * math.cos(a)
-        body.velocity = (vx, vy)
+        calls.set_velocity(body, vx, vy)
         if turn:
-            body.angle = a + BRANCH_SIGN[turn] * p.turn_step_radians
+            calls.set_angle(body, a + BRANCH_SIGN[turn] * p.turn_step_radians)
 
     def step_physics(self) -> None:
         """Advance pymunk by one physics step (drag on the agent, contacts with the walls)."""
-        self.space.step(self.params.physics_dt)
+        chipmunk.CALLS.step(self.space, self.params.physics_dt)
 
     # ---- sensing ------------------------------------------------------------------------------------
 
@@ -200,22 +203,24 @@ class Arena:
         Cast as a thin ray against the inflated sight shapes (see the module docstring).
         """
         x, y, c, s = self.pose()
-        query = self.space.segment_query_first
+        ray_first, space = chipmunk.CALLS.ray_first, self.space
         values: list[float] = []
         for rx, ry in self.ray_ends:
             start, end = (x, y), (x + rx * c - ry * s, y + rx * s + ry * c)
-            hit = query(start, end, 0.0, RAY_FILTER)
-            if hit is not None and hit.alpha == 0.0:
+            hit = ray_first(space, start, end, RAY_FILTER)
+            if hit is not None and hit[1] == 0.0:
                 hit = self._first_hit_from_outside(start, end)
             if hit is None:
                 values += MISS_ROW
             else:
-                values += HIT_PREFIX[hit.shape.collision_type]
-                values.append(hit.alpha)
+                values += HIT_PREFIX[hit[0]]
+                values.append(hit[1])
         return values
 
-    def _first_hit_from_outside(self, start: tuple[float, float], end: tuple[float, float]):
-        """The nearest hit ignoring shapes the cast starts inside of (Unity's SphereCast does the same).
+    def _first_hit_from_outside(self, start: tuple[float, float], end: tuple[float, float]
+                                ) -> tuple[int, float] | None:
+        """The nearest hit, as (collision type, fraction), ignoring shapes the cast starts inside of (Unity's
+        SphereCast does the same).
 
         Only needed when the agent is pressed against a wall: its centre is then within ``ray_radius``
         of the wall face, inside the inflated sight wall, and pymunk would report that wall at alpha 0.
@@ -225,7 +230,8 @@ class Arena:
         lim = self.params.arena_half_size
         hits = [h for h in self.space.segment_query(start, end, 0.0, RAY_FILTER) if h.alpha > 0.0 and (
                 h.shape.collision_type != Tag.WALL or (abs(h.point.x) <= lim and abs(h.point.y) <= lim))]
-        return min(hits, key=lambda h: h.alpha) if hits else None
+        first = min(hits, key=lambda h: h.alpha) if hits else None
+        return None if first is None else (first.shape.collision_type, first.alpha)
 
     # ---- saving and restoring ------------------------------------------------------------------------
 
