@@ -13,7 +13,8 @@ from foodcollector.env import encode_action
 
 def _rollout(make_env, calls, monkeypatch, actions, **kwargs):
     """Observations, rewards and agent positions of one seeded life, with the arena making ``calls``; and how
-    often a ray started inside a sight shape (the wall-pressed path)."""
+    often a ray started inside a sight shape (the wall-pressed path).
+    """
     monkeypatch.setattr(chipmunk, "CALLS", calls)
     inside = []
     original = Arena._first_hit_from_outside
