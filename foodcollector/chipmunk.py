@@ -65,12 +65,13 @@ try:
     from pymunk._chipmunk import ffi, lib
 
     _QUERY = ffi.new("cpSegmentQueryInfo *")  # scratch output of `ChipmunkCalls.ray_first`, read at once
-    _BINDINGS = all(hasattr(lib, name) for name in (
+    HAS_BINDINGS = all(hasattr(lib, name) for name in (
         "cpBodyGetPosition", "cpBodyGetVelocity", "cpBodySetVelocity", "cpBodyGetAngle", "cpBodySetAngle",
         "cpSpaceStep", "cpSpaceSegmentQueryFirst", "cpShapeGetCollisionType"))
-    _BINDINGS = _BINDINGS and hasattr(pymunk.Body(), "_body") and hasattr(pymunk.Space(), "_space")
+    HAS_BINDINGS = HAS_BINDINGS and hasattr(pymunk.Body(), "_body") and hasattr(pymunk.Space(), "_space")
 except (ImportError, AttributeError):  # pragma: no cover - another pymunk layout
-    _BINDINGS = False
+    HAS_BINDINGS = False
+"""Whether this pymunk exposes Chipmunk's bindings as pymunk 7.x does (`ChipmunkCalls` needs them)."""
 
 
 class ChipmunkCalls(PublicCalls):
@@ -121,5 +122,5 @@ class ChipmunkCalls(PublicCalls):
         return (lib.cpShapeGetCollisionType(shape), _QUERY.alpha) if shape else None
 
 
-CALLS: type[PublicCalls] = ChipmunkCalls if _BINDINGS else PublicCalls
+CALLS: type[PublicCalls] = ChipmunkCalls if HAS_BINDINGS else PublicCalls
 """The calls the arena makes (looked up at each use, so a test can swap in `PublicCalls`)."""

@@ -32,7 +32,7 @@ def _rollout(make_env, calls, monkeypatch, actions, **kwargs):
     return np.array(rows), len(inside)
 
 
-@pytest.mark.skipif(not chipmunk._BINDINGS, reason="this pymunk does not expose Chipmunk's bindings")
+@pytest.mark.skipif(not chipmunk.HAS_BINDINGS, reason="this pymunk does not expose Chipmunk's bindings")
 @pytest.mark.parametrize("dynamism", [0.0, 0.5])
 def test_direct_calls_equal_the_public_api(make_env, monkeypatch, dynamism):
     rng = np.random.default_rng(0)
