@@ -13,6 +13,8 @@ else `PublicCalls` (the same functions through pymunk's public API).
 
 from __future__ import annotations
 
+import threading
+
 import pymunk
 
 Vec = tuple[float, float]
@@ -64,7 +66,6 @@ class PublicCalls:
 try:
     from pymunk._chipmunk import ffi, lib
 
-    _QUERY = ffi.new("cpSegmentQueryInfo *")  # scratch output of `ChipmunkCalls.ray_first`, read at once
     HAS_BINDINGS = all(hasattr(lib, name) for name in (
         "cpBodyGetPosition", "cpBodyGetVelocity", "cpBodySetVelocity", "cpBodyGetAngle", "cpBodySetAngle",
         "cpSpaceStep", "cpSpaceSegmentQueryFirst", "cpShapeGetCollisionType"))
@@ -72,6 +73,7 @@ try:
 except (ImportError, AttributeError):  # pragma: no cover - another pymunk layout
     HAS_BINDINGS = False
 """Whether this pymunk exposes Chipmunk's bindings as pymunk 7.x does (`ChipmunkCalls` needs them)."""
+_SCRATCH = threading.local()  # each thread's output buffer of `ChipmunkCalls.ray_first` (cffi calls drop the GIL)
 
 
 class ChipmunkCalls(PublicCalls):
@@ -118,8 +120,11 @@ class ChipmunkCalls(PublicCalls):
         """The first shape a thin ray from ``start`` to ``end`` touches: (its collision type, the fraction of
         the way travelled), or None.
         """
-        shape = lib.cpSpaceSegmentQueryFirst(space._space, start, end, 0.0, shape_filter, _QUERY)
-        return (lib.cpShapeGetCollisionType(shape), _QUERY.alpha) if shape else None
+        info = getattr(_SCRATCH, "query", None)
+        if info is None:
+            info = _SCRATCH.query = ffi.new("cpSegmentQueryInfo *")
+        shape = lib.cpSpaceSegmentQueryFirst(space._space, start, end, 0.0, shape_filter, info)
+        return (lib.cpShapeGetCollisionType(shape), info.alpha) if shape else None
 
 
 CALLS: type[PublicCalls] = ChipmunkCalls if HAS_BINDINGS else PublicCalls

@@ -52,3 +52,19 @@ def test_pymunk_7_bindings_are_found():
         assert chipmunk.CALLS is chipmunk.ChipmunkCalls
     else:
         pytest.skip(f"pymunk {pymunk.version}: the arena uses {chipmunk.CALLS.__name__}")
+
+
+def test_worlds_stepped_in_threads_equal_worlds_stepped_alone(make_env):
+    """Each thread has its own ray-query buffer: worlds in a thread pool see what they see alone."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    def life(seed):
+        env = make_env(seed=seed, dynamism=0.5, reset_free=True)
+        actions = np.random.default_rng(seed).integers(0, 27, 300)
+        return np.array([env.step(int(a))[0] for a in actions])
+
+    alone = [life(s) for s in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        threaded = list(pool.map(life, range(4)))
+    for a, b in zip(alone, threaded):
+        np.testing.assert_array_equal(a, b)
