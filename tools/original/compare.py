@@ -30,12 +30,14 @@ COLLAPSE = 0.6
 
 
 def released_seeds(folder: Path) -> dict[str, list[dict[str, float]]]:
-    """Each released seed's metrics rows (``seed*/metrics.csv``), as numbers."""
+    """Each released seed's metrics rows (``seed*/metrics.csv``), as numbers; of an epoch written twice (by a run
+    killed past its checkpoint, then resumed) the last row.
+    """
     out = {}
     for path in sorted(folder.glob("seed*/metrics.csv")):
         with path.open() as f:
-            out[path.parent.name] = [{k: float(v) for k, v in row.items() if v not in ("", None)}
-                                     for row in csv.DictReader(f)]
+            rows = [{k: float(v) for k, v in row.items() if v not in ("", None)} for row in csv.DictReader(f)]
+        out[path.parent.name] = list({row["epoch"]: row for row in rows}.values())
     return out
 
 

@@ -107,10 +107,28 @@ def parse_settings(pairs: list[str]) -> dict:
     return settings
 
 
+def rows_up_to(text: str, epoch: int) -> str:
+    """A ``metrics.csv`` text with each validation once and none after ``epoch``: rows a killed run wrote past
+    its checkpoint (and wrote again after resuming) are kept in their resumed version only.
+    """
+    header, *rows = text.splitlines(keepends=True)
+    kept: list[str] = []
+    for row in rows:
+        row_epoch = int(row.split(",", 1)[0])
+        while kept and int(kept[-1].split(",", 1)[0]) >= row_epoch:
+            kept.pop()  # written before a resume that went back past it
+        kept.append(row)
+    return header + "".join(r for r in kept if int(r.split(",", 1)[0]) <= epoch)
+
+
 class Recorder:
     """Measures validation and training without touching either, and writes ``metrics.csv``."""
 
-    def __init__(self, out: Path, saved: dict | None = None) -> None:
+    def __init__(self, out: Path, saved: dict | None = None, saved_epoch: int = -1) -> None:
+        """A new ``metrics.csv`` in ``out``; or, resuming from the checkpoint after epoch ``saved_epoch`` with
+        the recorder state ``saved``, the run's own, its rows written after that epoch dropped (the resumed
+        run writes them again).
+        """
         self.path = out / "metrics.csv"
         self.start = time.time()
         self.train_reward = 0.0
@@ -123,6 +141,7 @@ class Recorder:
         else:  # a resumed run: its counters, its clock going on from the seconds already spent
             self.__dict__.update({k: v for k, v in saved.items() if k != "seconds"})
             self.start = time.time() - saved["seconds"]
+            self.path.write_text(rows_up_to(self.path.read_text(), saved_epoch))
 
     def state(self) -> dict:
         """What a resumed run needs to go on counting."""
@@ -291,7 +310,7 @@ def main(argv: list[str] | None = None) -> None:
     from rlkit.torch.pytorch_util import set_gpu_mode
 
     saved = load_checkpoint(args.out) if args.resume else None
-    recorder = Recorder(args.out, saved["recorder"] if saved else None)
+    recorder = Recorder(args.out, saved["recorder"], saved["epoch"]) if saved else Recorder(args.out)
     recorder.wrap_replay(ReplayBuffer)
     recorder.wrap_validation(BaseRLAlgorithm)
     variant["exp_id"], variant["seed"] = "0", str(args.seed)
