@@ -6,5 +6,5 @@
   before any of them reaches torch, numpy's generators or the engine;
 * `rundir`: a run directory's layout: resolved config, metrics, visitation counts, checkpoint.
 
-Importing this package imports nothing else, torch included.
+The package itself imports none of its modules, and no torch.
 """
