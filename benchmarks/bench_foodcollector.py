@@ -62,13 +62,14 @@ def compare_calls(decisions: int, rounds: int, seed: int) -> None:
     """
     knobs = CONDITIONS["dynamic + shaped, reset-free"]
     rates: dict[str, list[float]] = {"direct": [], "public": []}
+    previous = chipmunk.CALLS
     try:
         for r in range(rounds):
             for name, calls in (("direct", chipmunk.ChipmunkCalls), ("public", chipmunk.PublicCalls)):
                 chipmunk.CALLS = calls
                 rates[name].append(bench(knobs, decisions, seed + r)["decisions_per_s"])
     finally:
-        chipmunk.CALLS = chipmunk.ChipmunkCalls
+        chipmunk.CALLS = previous
     for name, values in rates.items():
         print(f"  {name:6s} calls: {' '.join(f'{v:6.0f}' for v in values)} decisions/s")
     print(f"  direct / public (medians): {np.median(rates['direct']) / np.median(rates['public']):.2f}x")

@@ -108,17 +108,12 @@ def parse_settings(pairs: list[str]) -> dict:
 
 
 def rows_up_to(text: str, epoch: int) -> str:
-    """A ``metrics.csv`` text with each validation once and none after ``epoch``: rows a killed run wrote past
-    its checkpoint (and wrote again after resuming) are kept in their resumed version only.
+    """A ``metrics.csv`` text with each validation once and none after ``epoch``: of a row a killed run wrote past
+    its checkpoint and the resumed run wrote again, the later one.
     """
     header, *rows = text.splitlines(keepends=True)
-    kept: list[str] = []
-    for row in rows:
-        row_epoch = int(row.split(",", 1)[0])
-        while kept and int(kept[-1].split(",", 1)[0]) >= row_epoch:
-            kept.pop()  # written before a resume that went back past it
-        kept.append(row)
-    return header + "".join(r for r in kept if int(r.split(",", 1)[0]) <= epoch)
+    by_epoch = {int(row.split(",", 1)[0]): row for row in rows}  # an epoch written twice: its last row
+    return header + "".join(row for e, row in by_epoch.items() if e <= epoch)
 
 
 class Recorder:
