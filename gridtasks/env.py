@@ -24,6 +24,7 @@ from gridtasks.batch import (  # noqa: F401 (check_* are re-exported for the tas
     StepBuffers,
     check_actions,
     check_choice,
+    check_flag,
     check_positive_int,
     check_probability,
     check_threads,
@@ -49,6 +50,10 @@ class EpisodeRules:
 
     def __post_init__(self) -> None:
         check_positive_int("replay_unsolved", self.replay_unsolved, 0)
+        for f in dataclasses.fields(self):  # every task's on/off parameters (walls, replenish, ...)
+            if f.type == "bool":
+                check_flag(f.name, getattr(self, f.name))
+                object.__setattr__(self, f.name, bool(getattr(self, f.name)))
 
 
 @dataclass(frozen=True)

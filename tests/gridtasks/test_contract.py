@@ -185,3 +185,16 @@ def test_numpy_integer_actions_are_accepted():
 def test_step_before_reset_is_refused():
     with pytest.raises(RuntimeError, match="reset"):
         gridtasks.SaladEnv().step(0)
+
+
+@pytest.mark.parametrize("env_id, name", [("gridtasks/Salad-v0", "walls"), ("gridtasks/Salad-v0", "regrow_when_empty"),
+                                          ("gridtasks/Hunting-v0", "replenish"),
+                                          ("gridtasks/Scavenging-v0", "spawn_on_agent")])
+@pytest.mark.parametrize("value", ["no", 5, 0.5])
+def test_on_off_parameters_refuse_anything_but_a_bool(env_id, name, value):
+    """walls='no' used to build the walls (any truthy value read as on)."""
+    with pytest.raises(ValueError, match=f"{name} must be True or False, got {value!r}"):
+        gym.make(env_id, **{name: value})
+    with pytest.raises(ValueError, match=f"{name} must be True or False"):
+        gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **{name: value})
+    assert getattr(gym.make(env_id, **{name: np.bool_(False)}).unwrapped.config, name) is False

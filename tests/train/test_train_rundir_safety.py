@@ -118,6 +118,7 @@ BAD_INPUTS = [
     (["--env-kwarg", "horizon=50"], "env_kwargs may not set 'horizon'"),
     (["--env-kwarg", "reset_free=true"], "env_kwargs may not set 'reset_free'"),
     (["--env-kwarg", "render_mode=rgb_array"], "env_kwargs may not set 'render_mode'"),
+    (["--env-kwarg", "walls=5"], "walls must be True or False, got 5"),
     (["--seeds", "5000", "--buffer-size", "100000000"], "use fewer --seeds or a smaller --buffer-size"),
     (["--eval-epsilon", "7"], "eval_epsilon must be a finite number in [0, 1], got 7.0"),
     (["--grad-clip", "-1"], "grad_clip must be a finite number > 0, got -1.0"),
