@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+
+import numpy as np
 
 from gridtasks.codes import Code
 from gridtasks.engine import MAX_PREDATORS, code_mask
@@ -32,11 +35,13 @@ class ScavengingConfig(SpawnRules):
         check_positive_int("food_count", self.food_count, 0)
         check_positive_int("predator_lifespan", self.predator_lifespan)
         check_positive_int("horizon", self.horizon)
-        if not 0 <= self.predator_count <= MAX_PREDATORS or isinstance(self.predator_count, bool):
+        check_positive_int("predator_count", self.predator_count, 0)
+        if self.predator_count > MAX_PREDATORS:
             raise ValueError(f"predator_count must be an integer in [0, {MAX_PREDATORS}], "
                              f"got {self.predator_count!r}")
-        if self.predator_penalty < 0:
-            raise ValueError(f"predator_penalty is a cost and must be >= 0, got {self.predator_penalty}")
+        penalty = self.predator_penalty
+        if isinstance(penalty, bool) or not isinstance(penalty, (int, float, np.number)) or not 0 <= penalty < math.inf:
+            raise ValueError(f"predator_penalty is a cost and must be a finite number >= 0, got {penalty!r}")
 
 
 class ScavengingEnv(GridTaskEnv):

@@ -198,3 +198,16 @@ def test_on_off_parameters_refuse_anything_but_a_bool(env_id, name, value):
     with pytest.raises(ValueError, match=f"{name} must be True or False"):
         gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point", **{name: value})
     assert getattr(gym.make(env_id, **{name: np.bool_(False)}).unwrapped.config, name) is False
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"predator_count": 2.5}, "predator_count must be an integer >= 0, got 2.5"),
+    ({"predator_count": "2"}, "predator_count must be an integer >= 0, got '2'"),
+    ({"predator_penalty": float("nan")}, "predator_penalty is a cost and must be a finite number >= 0, got nan"),
+    ({"predator_penalty": float("inf")}, "must be a finite number >= 0, got inf"),
+    ({"predator_penalty": "100"}, "must be a finite number >= 0, got '100'"),
+])
+def test_scavenging_predator_settings_are_checked(kwargs, message):
+    """A fractional count and a NaN or infinite penalty used to be accepted, a string raised a bare TypeError."""
+    with pytest.raises(ValueError, match=message):
+        gym.make("gridtasks/Scavenging-v0", **kwargs)
