@@ -94,13 +94,33 @@ def task_parameters(task: Task) -> tuple[str, ...]:
     return tuple(n for n in env_class.parameter_names() if n not in CONFIG_OWNED_ENV_KWARGS)
 
 
-def check_env_kwargs(task: Task, env_kwargs: dict[str, Any]) -> None:
+def check_env_kwargs(task: Task, env_kwargs: dict[str, Any], option: str = "--env-kwarg") -> None:
     """Raise ValueError (one line, listing the valid names) for an env kwarg the task does not take."""
     valid = task_parameters(task)
     unknown = sorted(set(env_kwargs) - set(valid))
     if unknown:
-        raise ValueError(f"{task.name} has no parameter {unknown[0]!r} (--env-kwarg); its parameters are: "
+        raise ValueError(f"{task.name} has no parameter {unknown[0]!r} ({option}); its parameters are: "
                          f"{', '.join(valid)}")
+
+
+def check_test_mdp(task: Task, info: EnvInfo, test_kwargs: dict[str, Any], eval_env_kwargs: dict[str, Any]) -> None:
+    """Build one environment of the evaluation's test MDP (``test_kwargs``, ``eval_env_kwargs`` among them) before
+    the run starts: raise ValueError (one line) for a parameter it refuses, or one that changes the observation or
+    action space the network is built for, rather than at the first evaluation.
+    """
+    check_env_kwargs(task, eval_env_kwargs, "--eval-env-kwarg")
+    try:
+        env = gym.make(task.env_id, **test_kwargs)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"the test MDP refuses --eval-env-kwarg {eval_env_kwargs}: {err}") from None
+    try:
+        spaces = int(np.prod(env.observation_space.shape)), int(env.action_space.n)
+    finally:
+        env.close()
+    if spaces != (info.obs_dim, info.num_actions):
+        raise ValueError(f"--eval-env-kwarg {eval_env_kwargs} gives the test MDP {spaces[0]} observations and "
+                         f"{spaces[1]} actions, the training env {info.obs_dim} and {info.num_actions}; the network "
+                         f"needs the same")
 
 
 def probe(task: Task, env_cfg: EnvConfig) -> EnvInfo:

@@ -36,6 +36,7 @@ from train.storage.statecheck import check_state, steps_left
 from train.tasks import (
     EnvInfo,
     Task,
+    check_test_mdp,
     completions,
     env_state,
     get_task,
@@ -76,6 +77,9 @@ class Trainer:
         self.info = probe(self.task, cfgs[0].env)
         cfgs = [resolve(c, self.task, self.info) for c in cfgs]
         check_packable(cfgs)
+        ev = cfgs[0].eval
+        check_test_mdp(self.task, self.info, evaluation_kwargs(self.info.test_kwargs, ev.eval_horizon, ev.eval_dynamism,
+                                                               ev.eval_env_kwargs), ev.eval_env_kwargs)
         run = cfgs[0].run
         check_device(run.device)
         if run.device.startswith("cuda"):  # full float32 products, so a GPU run matches the CPU's to rounding

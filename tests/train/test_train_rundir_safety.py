@@ -119,6 +119,9 @@ BAD_INPUTS = [
     (["--env-kwarg", "reset_free=true"], "env_kwargs may not set 'reset_free'"),
     (["--env-kwarg", "render_mode=rgb_array"], "env_kwargs may not set 'render_mode'"),
     (["--env-kwarg", "walls=5"], "walls must be True or False, got 5"),
+    (["--eval-env-kwarg", "colour=red"], "salad has no parameter 'colour' (--eval-env-kwarg)"),
+    (["--eval-env-kwarg", "grid_size=3"], "the test MDP refuses --eval-env-kwarg {'grid_size': 3}: grid_size must be "
+                                          "an integer >= 5, got 3"),
     (["--seeds", "5000", "--buffer-size", "100000000"], "use fewer --seeds or a smaller --buffer-size"),
     (["--eval-epsilon", "7"], "eval_epsilon must be a finite number in [0, 1], got 7.0"),
     (["--grad-clip", "-1"], "grad_clip must be a finite number > 0, got -1.0"),
