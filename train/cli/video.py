@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from train.cli.common import nonnegative, positive, probability, user_errors
+from train.cli.common import UserError, nonnegative, positive, probability, user_errors
 from train.storage.rundir import RunDirError
 
 VIDEO_DIR = Path("results") / "videos"
@@ -62,10 +62,21 @@ def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
     return args.policy, resolve_run_dir(args.policy) / "video.mp4"
 
 
+def check_out(out: Path | None, task: str) -> None:
+    """Raise `UserError` for an --out that cannot be the MP4 written: a directory, or another format's name."""
+    if out is None:
+        return
+    if out.is_dir():
+        raise UserError(f"--out {out} is a directory; give the file to write, e.g. --out {out / f'{task}.mp4'}")
+    if out.suffix.lower() != ".mp4":
+        raise UserError(f"--out {out}: ecorl video writes an H.264 MP4; give a file name ending in .mp4")
+
+
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Render the video and print its path."""
     from train.experiments.video import VIDEO_EPISODES, VIDEO_MAX_FRAMES, record_video
 
+    check_out(args.out, args.task)
     with user_errors(ValueError, OSError, RunDirError):
         policy, default_out = _video_source(args)
         video = record_video(args.task, args.out or default_out, policy_path=policy, steps=args.steps,

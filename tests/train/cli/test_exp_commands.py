@@ -216,3 +216,16 @@ def test_an_unfinished_sweep_names_each_run_and_why():
     assert "1 failed (salad/a; their errors are above)" in message
     assert "1 stopped at a checkpoint (salad/b)" in message
     assert "1 trained by another ecorl process (salad/c; it may finish them)" in message
+
+
+@pytest.mark.parametrize("name, message", [("films", "is a directory; give the file to write, e.g. --out "),
+                                           ("film.gif", "writes an H.264 MP4; give a file name ending in .mp4")])
+def test_video_out_must_name_an_mp4_file(name, message, tmp_path, capsys):
+    """A directory used to fail after rendering with a temporary file's name ([Errno 21] ... '.films.ecorl-tmp-...'),
+    and film.gif silently received an MP4.
+    """
+    (tmp_path / "films").mkdir()
+    assert cli.main(["video", "salad", "--random", "--steps", "2", "--out", str(tmp_path / name)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["films"] and not any((tmp_path / "films").iterdir())
