@@ -30,10 +30,11 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--out", type=Path, default=None,
                         help="output MP4 (default: RUN_DIR/video.mp4 for a run, else results/videos/TASK-trained.mp4 "
                              "or results/videos/TASK-random.mp4)")
-    parser.add_argument("--episodes", type=positive, default=None,
+    length = parser.add_mutually_exclusive_group()
+    length.add_argument("--episodes", type=positive, default=None,
                         help="whole episodes to film, each at most the test horizon (default: three, fewer where "
                              "the first already fills the film, as a 1 000-decision food-collector episode does)")
-    parser.add_argument("--steps", type=positive, default=None,
+    length.add_argument("--steps", type=positive, default=None,
                         help="film exactly this many steps instead (new episodes after each end)")
     parser.add_argument("--seed", type=nonnegative, default=0, help="first layout and exploration seed (default: 0)")
     parser.add_argument("--agent", type=int, default=0, help="which of the run's seeds acts, by index (default: 0)")

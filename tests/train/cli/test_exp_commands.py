@@ -33,6 +33,8 @@ def test_parsers_attach_to_any_subparsers():
     assert args.random and args.steps == 5 and args.handler is cli.video.handle
     with pytest.raises(SystemExit):
         parser.parse_args(["video", "salad", "--random", "--policy", "x"])
+    with pytest.raises(SystemExit):  # --steps used to win silently, the summary then naming one episode
+        parser.parse_args(["video", "salad", "--random", "--steps", "5", "--episodes", "2"])
 
 
 def test_ecorl_cli_has_the_subcommands_once_wired():
