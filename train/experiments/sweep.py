@@ -274,9 +274,25 @@ def print_plan(jobs: Sequence[Job], file=None) -> None:
                     f"p={c.env.dynamism:g}, shaping={c.env.shaping}, "
                     f"{'reset-free' if c.env.reset_free else 'episodic'}, "
                     f"reward={c.env.reward}{', rnd' if c.rnd.rnd else ''}")
-        state = "restart" if job.restart else "done" if _safe_is_done(job) else (
+        clash = "" if job.restart or job.is_measurement else settings_clash(job)
+        state = "restart" if job.restart else "clash" if clash else "done" if _safe_is_done(job) else (
             "resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists() else "new")
-        print(f"[{state:>6s}] {job.name}: {what}", file=file)
+        print(f"[{state:>6s}] {job.name}: {what}{clash}", file=file)
+
+
+def settings_clash(job: Job) -> str:
+    """Why a training job will fail on the run its directory already holds (other settings), or "" if it will not."""
+    from train.storage.rundir import RunDirError, check_same_run
+
+    saved = Path(job.run_dir) / "config.json"
+    if not saved.is_file():
+        return ""
+    try:
+        check_same_run(TrainConfig.from_dict(load_json(saved)), TrainConfig.from_dict(job.config), saved)
+    except (RunDirError, ValueError) as err:
+        return (f"\n         will fail: {' '.join(str(err).split()).removesuffix('.')}; or pass --restart "
+                f"{Path(job.run_dir).name} to train it again from scratch")
+    return ""
 
 
 def job_to_dict(job: Job) -> dict[str, Any]:

@@ -231,3 +231,24 @@ def test_video_out_must_name_an_mp4_file(name, message, tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["films"] and not any((tmp_path / "films").iterdir())
+
+
+def test_dry_run_says_which_runs_clash_with_the_settings_asked_for(capsys, tmp_path):
+    """A run directory made with other settings used to be planned as [resume], then the run failed."""
+    import json
+
+    from train.experiments.catalog import get_experiment
+    from train.experiments.sweep import plan
+
+    job = plan(get_experiment("headline"), "smoke", tmp_path, conditions=["static-episodic"])[0]
+    run_dir = tmp_path / "headline" / "salad" / "static-episodic"
+    run_dir.mkdir(parents=True)
+    (run_dir / "config.json").write_text(json.dumps(job.config))
+    args = ["run", "headline", "--budget", "smoke", "--condition", "static-episodic", "--dry-run", "--out",
+            str(tmp_path)]
+    assert cli.main(args) == 0
+    assert capsys.readouterr().out.startswith("[   new] headline/salad/static-episodic")
+    assert cli.main([*args, "--first-seed", "3"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("[ clash] headline/salad/static-episodic")
+    assert "first_seed: checkpoint has 0, you asked for 3" in out[1] and "--restart static-episodic" in out[1]
