@@ -150,6 +150,20 @@ def test_out_pointing_at_a_file_is_refused(tmp_path, capsys):
     assert target.read_text() == "mine"
 
 
+@pytest.mark.parametrize("command", [["train", "salad"], ["demo", "--steps", "2"]])
+def test_out_under_a_file_names_the_file(command, tmp_path, capsys):
+    """Used to print '[Errno 20] Not a directory: ...' (train) or '[Errno 17] File exists: ...' (demo)."""
+    target = tmp_path / "notes.txt"
+    target.write_text("mine")
+    out = target / "run" / "deeper"
+    assert main([*command, "--out", str(out)]) == 2
+    assert f"--out {out} lies under {target}, a file, not a directory; choose another --out" in \
+        _one_line_error(capsys)
+    assert main([*command, "--out", str(target)]) == 2
+    assert f"--out {target} is a file, not a directory" in _one_line_error(capsys)
+    assert target.read_text() == "mine"
+
+
 # ---- TensorBoard after a resume ------------------------------------------------------------------------
 
 

@@ -46,6 +46,20 @@ def relative(path: Path) -> Path:
         return Path(path)
 
 
+def check_out_dir(out: Path, named: Path | None = None) -> None:
+    """Raise `UserError` when the directory ``out`` is, or would have to be made under, an existing file
+    (``named``: the --out given, when ``out`` is the directory of the file it names).
+    """
+    named = named or out
+    for path in (out, *out.parents):
+        if path.exists():
+            if path.is_dir():
+                return
+            if path == named:
+                raise UserError(f"--out {named} is a file, not a directory; choose a directory path")
+            raise UserError(f"--out {named} lies under {path}, a file, not a directory; choose another --out")
+
+
 def positive(text: str) -> int:
     """An integer >= 1 (an argparse type)."""
     value = int(text)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from train.cli.common import nonnegative, positive
+from train.cli.common import check_out_dir, nonnegative, positive
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -25,6 +25,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Render the videos and the picture; print the paths written."""
     from train.experiments.demo import run_demo
 
+    check_out_dir(args.out)
     for path in run_demo(args.out, steps=args.steps, seed=args.seed):
         print(path)
     return 0

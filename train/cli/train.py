@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from train.cli.common import user_errors
+from train.cli.common import check_out_dir, user_errors
 from train.cli.flags import add_config_arguments, flag, given_settings, shown
 from train.config import SECTIONS, TrainConfig, _jsonable
 from train.experiments.choices import TUNED
@@ -90,8 +90,7 @@ def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
     given = given_settings(args)
     cfg = TrainConfig().replace(**{**tuned_settings(args.task, given), **given, "task": args.task})
     out = args.out or default_run_dir(cfg)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} is a file, not a directory; choose a directory path")
+    check_out_dir(out)
     if args.resume:
         cfg = resume_config(out, args.task, {**given, "task": args.task})
     cfg.check_trains()
