@@ -89,3 +89,23 @@ def test_the_grid_can_evaluate_in_a_dynamic_test_mdp(monkeypatch, cli):
     assert "test MDP with dynamism 0.2" in proc.stdout
     bad = cli("evaluate", str(shipped_policy("hunting")), "--test-dynamism", "1.5", check=False)
     assert bad.returncode == 2 and "--test-dynamism" in bad.stderr
+
+
+def test_grid_out_is_checked_before_the_rollouts_and_its_folder_made(tmp_path, monkeypatch, capsys):
+    """An --out under a file, or a directory, used to fail only after the whole grid was evaluated; an --out in a
+    folder not yet made failed the same way ([Errno 2] No such file or directory).
+    """
+    import train.evaluation.grid
+    from train.cli import main
+
+    (tmp_path / "notes.txt").write_text("mine")
+    (tmp_path / "grids").mkdir()
+    base = ["evaluate", str(shipped_policy("salad")), "--horizons", "3", "--rollouts", "2", "--out"]
+    with monkeypatch.context() as patch:
+        patch.setattr(train.evaluation.grid, "evaluate_grid", lambda *a, **k: pytest.fail("evaluated first"))
+        assert main([*base, str(tmp_path / "notes.txt" / "grid.csv")]) == 2
+        assert "lies under" in capsys.readouterr().err
+        assert main([*base, str(tmp_path / "grids")]) == 2
+        assert "is a directory; give the CSV file to write" in capsys.readouterr().err
+    assert main([*base, str(tmp_path / "new" / "grid.csv")]) == 0
+    assert len(list(csv.DictReader((tmp_path / "new" / "grid.csv").open()))) == 3
