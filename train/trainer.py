@@ -52,15 +52,6 @@ CHECKPOINT_VERSION = 2
 """Version of a run's checkpoint state (the layout inside the checkpoint file, `train.storage.checkpoint`)."""
 
 
-def distinct(items) -> list:
-    """The distinct items in first-appearance order (by equality: configs holding dicts do not hash)."""
-    seen: list = []
-    for item in items:
-        if item not in seen:
-            seen.append(item)
-    return seen
-
-
 def resolve(cfg: TrainConfig, task: Task, info: EnvInfo) -> TrainConfig:
     """Fill the task-dependent defaults (validation rollouts, test horizon) into ``cfg``."""
     return cfg.replace(eval_rollouts=cfg.eval.eval_rollouts or task.eval_rollouts,
@@ -86,10 +77,9 @@ class Trainer:
         self.info = probe(self.task, cfgs[0].env)
         cfgs = [resolve(c, self.task, self.info) for c in cfgs]
         check_packable(cfgs)
-        for ev in distinct(c.eval for c in cfgs):  # a pack's conditions may validate differently
-            check_test_mdp(self.task, self.info, evaluation_kwargs(self.info.test_kwargs, ev.eval_horizon,
-                                                                   ev.eval_dynamism, ev.eval_env_kwargs),
-                           ev.eval_env_kwargs)
+        ev = cfgs[0].eval  # a pack's conditions share it (check_packable)
+        check_test_mdp(self.task, self.info, evaluation_kwargs(self.info.test_kwargs, ev.eval_horizon, ev.eval_dynamism,
+                                                               ev.eval_env_kwargs), ev.eval_env_kwargs)
         run = cfgs[0].run
         check_device(run.device)
         if run.device.startswith("cuda"):  # full float32 products, so a GPU run matches the CPU's to rounding
