@@ -23,8 +23,14 @@ def _free_port() -> int:
 
 
 @pytest.fixture
-def ray_head(tmp_path):
-    """``ray start --head --block`` in its own process group; the whole group is stopped afterwards."""
+def ray_head(tmp_path, monkeypatch):
+    """``ray start --head --block`` in its own process group; the whole group is stopped afterwards.
+
+    Token authentication is off for the head and every driver the test starts: with a ``~/.ray/auth_token`` at
+    hand (one was written here when ``ecorl run --executor ray`` started a local Ray) Ray 2.60's drivers sent a
+    token the head refused, and the test failed.
+    """
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")
     port = _free_port()
     temp = Path("/tmp") / f"ecorl-ray-{os.getpid()}"  # Ray's socket paths must stay short
     log = open(tmp_path / "ray.log", "w")
