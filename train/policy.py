@@ -23,7 +23,7 @@ import torch
 
 from train.agent.network import QNetwork
 from train.config import TrainConfig
-from train.evaluation.protocol import EvalResult, Evaluator, evaluation_kwargs
+from train.evaluation.protocol import EvalResult, Evaluator, evaluation_kwargs, run_evaluation_kwargs
 from train.storage.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.storage.fileio import atomic_file
 from train.storage.rundir import EXPERIMENT_FILE, RUN_POLICIES_DIR, RunDir, RunDirError
@@ -70,8 +70,7 @@ class Policy:
     @property
     def test_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of the test MDP the policy is evaluated in (at the run's evaluation horizon)."""
-        ev = self.cfg.eval
-        return evaluation_kwargs(self._info.test_kwargs, ev.eval_horizon, ev.eval_dynamism, ev.eval_env_kwargs)
+        return run_evaluation_kwargs(self._info.test_kwargs, self.cfg.eval)
 
     @property
     def task(self) -> str:

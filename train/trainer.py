@@ -26,7 +26,7 @@ import torch
 from train.agent.learner import STREAMS, DQNLearner, Learner, RowSettings, seed_streams
 from train.agent.network import QNetwork
 from train.config import TrainConfig
-from train.evaluation.protocol import Evaluator, evaluation_kwargs
+from train.evaluation.protocol import Evaluator, run_evaluation_kwargs
 from train.memory import check_memory
 from train.packing import check_device, check_packable
 from train.parts import Part
@@ -78,8 +78,7 @@ class Trainer:
         cfgs = [resolve(c, self.task, self.info) for c in cfgs]
         check_packable(cfgs)
         ev = cfgs[0].eval  # a pack's conditions share it (check_packable)
-        check_test_mdp(self.task, self.info, evaluation_kwargs(self.info.test_kwargs, ev.eval_horizon, ev.eval_dynamism,
-                                                               ev.eval_env_kwargs), ev.eval_env_kwargs)
+        check_test_mdp(self.task, self.info, run_evaluation_kwargs(self.info.test_kwargs, ev), ev.eval_env_kwargs)
         run = cfgs[0].run
         check_device(run.device)
         if run.device.startswith("cuda"):  # full float32 products, so a GPU run matches the CPU's to rounding
@@ -249,8 +248,7 @@ class Trainer:
         """The evaluation protocol's batched environment over every row (built on first use)."""
         if self._evaluator is None:
             ev = self.cfg.eval
-            kwargs = evaluation_kwargs(self.info.test_kwargs, ev.eval_horizon, ev.eval_dynamism, ev.eval_env_kwargs)
-            self._evaluator = Evaluator(self.task.env_id, kwargs,
+            self._evaluator = Evaluator(self.task.env_id, run_evaluation_kwargs(self.info.test_kwargs, ev),
                                         self.num_agents, ev.eval_rollouts, ev.eval_epsilon, self.info.num_actions,
                                         threads=self.cfg.run.env_threads)
         return self._evaluator

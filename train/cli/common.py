@@ -60,6 +60,15 @@ def check_out_dir(out: Path, named: Path | None = None) -> None:
             raise UserError(f"--out {named} lies under {path}, a file, not a directory; choose another --out")
 
 
+def check_out_file(out: Path, what: str, example: str) -> None:
+    """Raise `UserError` when the file ``out`` (a ``what``, e.g. 'CSV file') cannot be written: it names a directory
+    (the error suggests ``example`` inside it), or lies under an existing file.
+    """
+    if out.is_dir():
+        raise UserError(f"--out {out} is a directory; give the {what} to write, e.g. --out {out / example}")
+    check_out_dir(out.parent, out)
+
+
 def positive(text: str) -> int:
     """An integer >= 1 (an argparse type)."""
     value = int(text)

@@ -6,7 +6,7 @@ import argparse
 import math
 from pathlib import Path
 
-from train.cli.common import UserError, check_out_dir, positive, probability, user_errors
+from train.cli.common import check_out_file, positive, probability, user_errors
 from train.storage.rundir import RunDirError
 
 
@@ -70,10 +70,7 @@ def handle_grid(args: argparse.Namespace, policy) -> int:
     if args.fresh is not None and args.fresh < 0:
         raise ValueError(f"--fresh must be 0 or more layouts, got {args.fresh}")
     if args.out is not None:  # refused now, not after the grid's rollouts
-        if args.out.is_dir():
-            raise UserError(f"--out {args.out} is a directory; give the CSV file to write, e.g. "
-                            f"--out {args.out / 'grid.csv'}")
-        check_out_dir(args.out.parent, args.out)
+        check_out_file(args.out, "CSV file", "grid.csv")
     eps = args.epsilons or [policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon]
     horizons = args.horizons or [int(policy.test_kwargs["horizon"])]
     rows = evaluate_grid(policy, eps, horizons, args.rollouts, args.fresh or 0, split=not args.no_split,

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from train.cli.common import UserError, nonnegative, positive, probability, user_errors
+from train.cli.common import UserError, check_out_file, nonnegative, positive, probability, user_errors
 from train.storage.rundir import RunDirError
 
 VIDEO_DIR = Path("results") / "videos"
@@ -64,11 +64,12 @@ def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
 
 
 def check_out(out: Path | None, task: str) -> None:
-    """Raise `UserError` for an --out that cannot be the MP4 written: a directory, or another format's name."""
+    """Raise `UserError` for an --out that cannot be the MP4 written: a directory, a path under a file, or another
+    format's name.
+    """
     if out is None:
         return
-    if out.is_dir():
-        raise UserError(f"--out {out} is a directory; give the file to write, e.g. --out {out / f'{task}.mp4'}")
+    check_out_file(out, "file", f"{task}.mp4")
     if out.suffix.lower() != ".mp4":
         raise UserError(f"--out {out}: ecorl video writes an H.264 MP4; give a file name ending in .mp4")
 

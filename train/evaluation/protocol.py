@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 from ecology import validation_seeds
+from train.config import EvalConfig
 from train.runlog import Interrupted, stop_requested
 from train.tasks import make_vector_env
 
@@ -36,6 +37,11 @@ def evaluation_kwargs(test_kwargs: dict, eval_horizon: int | None, eval_dynamism
     """
     return {**test_kwargs, **(eval_env_kwargs or {}), "dynamism": eval_dynamism,
             "horizon": eval_horizon or test_kwargs["horizon"]}
+
+
+def run_evaluation_kwargs(test_kwargs: dict, ev: EvalConfig) -> dict:
+    """`evaluation_kwargs` under a run's evaluation settings ``ev``."""
+    return evaluation_kwargs(test_kwargs, ev.eval_horizon, ev.eval_dynamism, ev.eval_env_kwargs)
 
 
 class ActionValues(Protocol):
