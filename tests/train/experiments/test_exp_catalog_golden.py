@@ -9,6 +9,8 @@ experiments (`train.experiments.released`) and factory's shipped subgoal-mode ar
 ``hunting-inventory`` was appended later (its entry dumped from its own code; nothing else changed).
 ``hunting-behaviour`` gained two arms with the released network (``eps-1-inv8``, ``eps-floor-0.3-inv8``) and a
 sentence; its entry was dumped again from its code, its two earlier arms' jobs checked unchanged first.
+``factory-make-axe`` gained one arm, its dynamic non-episodic condition with the released network
+(``dynamic-reset-free-inv8``), and a sentence; dumped the same way, its nine earlier arms' jobs checked unchanged.
 """
 
 from __future__ import annotations
