@@ -23,7 +23,7 @@ import torch
 
 from train.agent.network import QNetwork
 from train.config import TrainConfig
-from train.evaluation.protocol import EvalResult, Evaluator, evaluation_kwargs, run_evaluation_kwargs
+from train.evaluation.protocol import EvalResult, Evaluator, UniformRandom, evaluation_kwargs, run_evaluation_kwargs
 from train.storage.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.storage.fileio import atomic_file
 from train.storage.rundir import EXPERIMENT_FILE, RUN_POLICIES_DIR, RunDir, RunDirError
@@ -107,6 +107,18 @@ class Policy:
                               layout_seeds)
         try:
             return evaluator(self, [self.seed], step=0)
+        finally:
+            evaluator.close()
+
+    def random_draws(self, draws: int, rollouts: int = 100) -> EvalResult:
+        """A uniform random policy on the same ``rollouts`` validation layouts of the policy's test MDP, ``draws``
+        times with independent streams (one agent each, K = ``draws``): the spread of the random baseline that
+        ``evaluate(epsilon=1)`` draws once. Draw 0 is that one draw (the same exploration stream).
+        """
+        evaluator = Evaluator(get_task(self.task).env_id, self.test_kwargs, draws, rollouts, 1.0,
+                              self._info.num_actions)
+        try:
+            return evaluator(UniformRandom(self._info.num_actions), range(self.seed, self.seed + draws), step=0)
         finally:
             evaluator.close()
 

@@ -22,6 +22,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--rollouts", type=positive, default=100, help="validation layouts (default: 100)")
     parser.add_argument("--epsilon", type=probability, default=None,
                         help="exploration during evaluation (default: the run's, 0.1 in the paper)")
+    parser.add_argument("--random-draws", type=positive, default=1, metavar="N",
+                        help="evaluate the random policy N times with independent draws and print their mean, "
+                             "spread and range (default: 1; a single draw of 100 layouts varies by a few points)")
     grid = parser.add_argument_group(
         "evaluation grid", "any of these options tabulates success at every (layouts, horizon, epsilon), split by "
         "whether an object needed first (salad: an ingredient) is in the first view, on the tasks that define one")
@@ -42,22 +45,35 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Print the policy's and a random policy's success and mean return."""
+    import numpy as np
+
     from train.policy import load_policy
 
     with user_errors(ValueError, OSError, RunDirError):
         policy = load_policy(args.policy, args.agent)
         grid_options = (args.epsilons, args.horizons, args.fresh, args.out, args.test_dynamism)
         if any(x is not None for x in grid_options) or args.no_split:
+            if args.random_draws != 1:
+                raise ValueError("--random-draws goes without the evaluation grid's options (the grid tabulates "
+                                 "--epsilons 1 for a random policy)")
             return handle_grid(args, policy)
         results = {"policy": policy.evaluate(args.rollouts, args.epsilon),
-                   "random": policy.evaluate(args.rollouts, epsilon=1.0)}
+                   "random": policy.random_draws(args.random_draws, args.rollouts)}
     eps = policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon
     print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP:")
     for name, r in results.items():
         how = f"epsilon {eps:g}" if name == "policy" else "uniform random"
-        steps = float(r.median_steps_to_solve[0])
+        steps = float(np.median(r.steps_to_solve[r.solved])) if r.solved.any() else math.nan
         speed = "" if math.isnan(steps) else f", median {steps:g} steps to solve (solved layouts)"
-        print(f"  {name:>6s} ({how}): success {100 * r.success[0]:.0f} %, mean return {r.returns[0]:.1f}{speed}")
+        print(f"  {name:>6s} ({how}): success {100 * r.success.mean():.{1 if len(r.success) > 1 else 0}f} %, "
+              f"mean return {r.returns.mean():.1f}{speed}")
+    if args.random_draws > 1:
+        s = 100 * results["random"].success
+        half = 1.959964 * s.std(ddof=1) / math.sqrt(len(s))  # normal 95 % interval of the mean
+        low, high = max(s.mean() - half, 0.0), min(s.mean() + half, 100.0)
+        print(f"  random: the mean of {len(s)} independent draws, 95 % CI [{low:.1f}, {high:.1f}]; "
+              f"one draw's standard deviation {s.std(ddof=1):.1f} points, "
+              f"range {s.min():.0f}-{s.max():.0f} %")
     return 0
 
 

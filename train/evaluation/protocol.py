@@ -51,6 +51,19 @@ class ActionValues(Protocol):
         """Action values (K, N, actions) on the CPU of observations (K, N, obs_dim)."""
 
 
+class UniformRandom:
+    """K uniform random policies as `ActionValues`: every action value 0, so that with epsilon 1 each step is a
+    uniform draw from that agent's own exploration stream.
+    """
+
+    def __init__(self, num_actions: int) -> None:
+        self.num_actions = num_actions
+
+    def q_values(self, obs: torch.Tensor) -> torch.Tensor:
+        """Zeros (K, N, actions) for observations (K, N, obs_dim)."""
+        return torch.zeros(obs.shape[0], obs.shape[1], self.num_actions)
+
+
 @dataclass(frozen=True)
 class EvalResult:
     """Per-agent evaluation results."""

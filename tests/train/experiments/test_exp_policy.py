@@ -228,3 +228,21 @@ def test_a_run_kept_without_its_checkpoint_points_to_its_exported_policies(capsy
     err = capsys.readouterr().err
     assert "kept without its checkpoint: pass one of its exported policies" in err
     assert str(shipped / "policies" / "best.npz") in err
+
+
+def test_random_draws_spread_the_baseline_and_start_with_the_single_draw(run_dir, tmp_path, capsys):
+    out = tmp_path / "salad.npz"
+    assert cli.main(["export", str(run_dir), "--out", str(out)]) == 0
+    policy = load_policy_file(out)
+    single = policy.evaluate(rollouts=20, epsilon=1.0)
+    draws = policy.random_draws(6, rollouts=20)
+    assert draws.success.shape == (6,)
+    np.testing.assert_array_equal(draws.steps_to_solve[0], single.steps_to_solve[0])  # draw 0 is the single draw
+    assert len({tuple(row) for row in draws.steps_to_solve}) > 1  # the other draws are independent of it
+    capsys.readouterr()
+    assert cli.main(["evaluate", str(out), "--rollouts", "20", "--random-draws", "6"]) == 0
+    printed = capsys.readouterr().out
+    assert f"success {100 * draws.success.mean():.1f} %" in printed
+    assert "the mean of 6 independent draws" in printed
+    assert cli.main(["evaluate", str(out), "--random-draws", "3", "--epsilons", "1"]) == 2
+    assert "--random-draws goes without" in capsys.readouterr().err
