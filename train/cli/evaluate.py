@@ -9,6 +9,9 @@ from pathlib import Path
 from train.cli.common import check_out_file, positive, probability, user_errors
 from train.storage.rundir import RunDirError
 
+MAX_RANDOM_WORLDS = 100_000
+"""Most worlds `--random-draws` steps at once (draws x rollouts: 1 000 draws of the 100 layouts)."""
+
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
     """``ecorl evaluate POLICY [--agent K] [--rollouts N] [--epsilon E]``."""
@@ -50,6 +53,10 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from train.policy import load_policy
 
     with user_errors(ValueError, OSError, RunDirError):
+        if args.random_draws * args.rollouts > MAX_RANDOM_WORLDS:
+            raise ValueError(f"--random-draws {args.random_draws} x --rollouts {args.rollouts} would step "
+                             f"{args.random_draws * args.rollouts:,} worlds at once; keep it to {MAX_RANDOM_WORLDS:,} "
+                             f"(e.g. --random-draws {max(1, MAX_RANDOM_WORLDS // args.rollouts)})")
         policy = load_policy(args.policy, args.agent)
         grid_options = (args.epsilons, args.horizons, args.fresh, args.out, args.test_dynamism)
         if any(x is not None for x in grid_options) or args.no_split:

@@ -246,3 +246,5 @@ def test_random_draws_spread_the_baseline_and_start_with_the_single_draw(run_dir
     assert "the mean of 6 independent draws" in printed
     assert cli.main(["evaluate", str(out), "--random-draws", "3", "--epsilons", "1"]) == 2
     assert "--random-draws goes without" in capsys.readouterr().err
+    assert cli.main(["evaluate", str(out), "--random-draws", "5000"]) == 2
+    assert "would step 500,000 worlds at once; keep it to 100,000 (e.g. --random-draws 1000)" in capsys.readouterr().err
