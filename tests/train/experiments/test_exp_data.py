@@ -354,6 +354,13 @@ def test_hunting_inventory_arms_are_the_shipped_fig_4_runs_with_only_the_invento
         assert job_config(inv, "hunting", ours, inv.budget("paper")) == theirs.replace(inventory_repeat=8)
 
 
+def test_make_axe_released_input_arm_is_its_dynamic_non_episodic_arm_with_only_the_inventory_read_8_times():
+    exp = get_experiment("factory-make-axe")
+    arms = {c.name: job_config(exp, "factory", c, exp.budget("paper")) for c in exp.conditions["factory"]}
+    assert arms["dynamic-reset-free"].dqn.inventory_repeat == 1
+    assert arms["dynamic-reset-free-inv8"] == arms["dynamic-reset-free"].replace(inventory_repeat=8)
+
+
 # (experiment, task, condition) pairs that build the very same config: one run stands for both, so the
 # shipped results copy it and the not-yet-run list counts it once (docs/results/paper/README.md).
 SAME_RUNS = [
