@@ -261,6 +261,25 @@ def summarize(results: Iterable[JobResult]) -> dict[str, int]:
     return counts
 
 
+PLAN_EXTRAS = (("env", "horizon"), ("env", "env_kwargs"), ("dqn", "lr"), ("dqn", "eps_end"),
+               ("dqn", "inventory_repeat"), ("dqn", "completion_terminal"), ("dqn", "timeouts_terminal"),
+               ("eval", "eval_dynamism"), ("eval", "eval_horizon"), ("eval", "eval_env_kwargs"))
+"""Settings a plan line names where a job changes them from `TrainConfig`'s defaults (the knobs it always shows
+aside), so that two conditions that differ only there read differently."""
+
+
+def plan_extras(cfg: TrainConfig) -> list[str]:
+    """``name=value`` for each of `PLAN_EXTRAS` that ``cfg`` changes (a dict of task parameters item by item)."""
+    default, parts = TrainConfig(), []
+    for section, name in PLAN_EXTRAS:
+        value = getattr(getattr(cfg, section), name)
+        if value == getattr(getattr(default, section), name):
+            continue
+        items = value.items() if isinstance(value, dict) else [(name, value)]
+        parts += [f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in items]
+    return parts
+
+
 def print_plan(jobs: Sequence[Job], file=None) -> None:
     """One line per job: its directory, seeds, steps and whether it is done."""
     file = file or sys.stdout
@@ -274,6 +293,7 @@ def print_plan(jobs: Sequence[Job], file=None) -> None:
                     f"p={c.env.dynamism:g}, shaping={c.env.shaping}, "
                     f"{'reset-free' if c.env.reset_free else 'episodic'}, "
                     f"reward={c.env.reward}{', rnd' if c.rnd.rnd else ''}")
+            what += "".join(f", {extra}" for extra in plan_extras(c))
         clash = "" if job.restart or job.is_measurement else settings_clash(job)
         state = "restart" if job.restart else "clash" if clash else "done" if _safe_is_done(job) else (
             "resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists() else "new")

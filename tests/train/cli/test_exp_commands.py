@@ -66,6 +66,18 @@ def test_run_list_and_dry_run(capsys, tmp_path):
         cli.main(["run", "rnd", "--task", "salad"])
 
 
+def test_dry_run_names_the_settings_that_tell_two_conditions_apart(capsys, tmp_path):
+    assert cli.main(["run", "factory-make-axe", "--budget", "paper", "--condition", "dynamic-reset-free",
+                     "dynamic-reset-free-inv8", "--dry-run", "--out", str(tmp_path)]) == 0
+    lines = dict(line.split(": ", 1) for line in capsys.readouterr().out.splitlines())
+    plain, inv8 = lines["[   new] factory-make-axe/factory/dynamic-reset-free"], \
+        lines["[   new] factory-make-axe/factory/dynamic-reset-free-inv8"]
+    assert plain.endswith("reward=sparse, goal=make_axe") and inv8.endswith("goal=make_axe, inventory_repeat=8")
+    assert cli.main(["run", "headline", "--budget", "paper", "--condition", "dynamic-episodic", "--dry-run",
+                     "--out", str(tmp_path)]) == 0
+    assert "lr=0.0003" in capsys.readouterr().out  # salad's tuned rate, beside the default 1e-4
+
+
 def test_run_all_plans_every_training_experiment_and_each_copy_once(capsys, tmp_path):
     assert cli.main(["run", "--all", "--budget", "paper", "--task", "salad", "--dry-run", "--out", str(tmp_path)]) == 0
     lines = capsys.readouterr().out.splitlines()
