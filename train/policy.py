@@ -23,7 +23,14 @@ import torch
 
 from train.agent.network import QNetwork
 from train.config import TrainConfig
-from train.evaluation.protocol import EvalResult, Evaluator, UniformRandom, evaluation_kwargs, run_evaluation_kwargs
+from train.evaluation.protocol import (
+    ActionValues,
+    EvalResult,
+    Evaluator,
+    UniformRandom,
+    evaluation_kwargs,
+    run_evaluation_kwargs,
+)
 from train.storage.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, legacy_message
 from train.storage.fileio import atomic_file
 from train.storage.rundir import EXPERIMENT_FILE, RUN_POLICIES_DIR, RunDir, RunDirError
@@ -103,22 +110,23 @@ class Policy:
                   evaluation_kwargs(self._info.test_kwargs, horizon, ev.eval_dynamism, ev.eval_env_kwargs))
         if dynamism is not None:
             kwargs = {**kwargs, "dynamism": dynamism}
-        evaluator = Evaluator(get_task(self.task).env_id, kwargs, 1, rollouts, eps, self._info.num_actions,
-                              layout_seeds)
-        try:
-            return evaluator(self, [self.seed], step=0)
-        finally:
-            evaluator.close()
+        return self._rollouts(kwargs, self, [self.seed], rollouts, eps, layout_seeds)
 
     def random_draws(self, draws: int, rollouts: int = 100) -> EvalResult:
         """A uniform random policy on the same ``rollouts`` validation layouts of the policy's test MDP, ``draws``
         times with independent streams (one agent each, K = ``draws``): the spread of the random baseline that
         ``evaluate(epsilon=1)`` draws once. Draw 0 is that one draw (the same exploration stream).
         """
-        evaluator = Evaluator(get_task(self.task).env_id, self.test_kwargs, draws, rollouts, 1.0,
-                              self._info.num_actions)
+        return self._rollouts(self.test_kwargs, UniformRandom(self._info.num_actions),
+                              range(self.seed, self.seed + draws), rollouts, 1.0)
+
+    def _rollouts(self, kwargs: dict[str, Any], agent: ActionValues, seeds: Sequence[int], rollouts: int,
+                  epsilon: float, layout_seeds: Sequence[int] | None = None) -> EvalResult:
+        """``agent``'s evaluation (one agent per seed of ``seeds``) in this task's test MDP built from ``kwargs``."""
+        evaluator = Evaluator(get_task(self.task).env_id, kwargs, len(seeds), rollouts, epsilon,
+                              self._info.num_actions, layout_seeds)
         try:
-            return evaluator(UniformRandom(self._info.num_actions), range(self.seed, self.seed + draws), step=0)
+            return evaluator(agent, seeds, step=0)
         finally:
             evaluator.close()
 
