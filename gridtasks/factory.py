@@ -113,7 +113,7 @@ class FactoryEnv(GridTaskEnv):
         r["waypoint_repeats"] = True
         if self.config.goal == "make_axe":
             r["goal_made"] = Code.AXE
-            r["stage_on_pickup"][Code.METAL] = r["stage_on_pickup"][Code.WOOD] = 0
+            r["stage_on_pickup"][Code.METAL], r["stage_on_pickup"][Code.WOOD] = 0, 1  # +1 per material
         else:
             r["deliver_item"], r["deliver_target"] = Code.AXE, Code.DEPOT
             self._fill_ladder(r)

@@ -225,6 +225,17 @@ def test_factory_goal_make_axe_ends_when_the_axe_is_made():
     assert env.test_mdp_kwargs()["goal"] == "make_axe"
 
 
+@pytest.mark.parametrize("mode", ["subgoal", "one_time", "distance"])
+def test_factory_goal_make_axe_pays_each_material_once_a_cycle(mode):
+    env = make(gridtasks.FactoryEnv, 7, reward=mode, goal="make_axe", reset_free=True)
+    world_from_map(env, FACTORY, agent=(2, 3))
+    # metal received, dropped, picked up again (no second +1), dropped; wood received; wood onto metal: the axe
+    script = [INTERACT, SOUTH, PLACE, PICK_UP, PLACE, NORTH, EAST, EAST, INTERACT, SOUTH, WEST, WEST, PLACE]
+    rewards, _, info = run(env, script)
+    assert [r for r in rewards if r >= 1] == [1, 1, 100] and info["completions"] == 1
+    assert rewards[0] == 1 and rewards[3] <= 0 and rewards[8] == 1 and rewards[-1] == 100
+
+
 def test_factory_goal_make_axe_uses_the_axe_up_when_reset_free():
     env = make(gridtasks.FactoryEnv, 7, reward="sparse", goal="make_axe", reset_free=True)
     world = world_from_map(env, FACTORY, agent=(2, 3))
