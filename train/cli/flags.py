@@ -18,8 +18,11 @@ SKIPPED_FIELDS = ("task",)
 
 
 def flag(name: str) -> str:
-    """The command-line spelling of a field name."""
-    return "--" + name.replace("_", "-")
+    """The command-line spelling of a field name (a dict field takes one KEY=VALUE a flag: env_kwargs ->
+    --env-kwarg).
+    """
+    spelling = "--" + name.replace("_", "-")
+    return spelling.removesuffix("s") if name.endswith("_kwargs") else spelling
 
 
 def _parse_env_kwarg(text: str) -> tuple[str, Any]:
@@ -50,7 +53,7 @@ def _add_field(group, f: dataclasses.Field, hint: Any, doc: str) -> None:
         group.add_argument(flag(f.name), type=typing.get_args(hint)[0], nargs="+", metavar="N",
                            help=help_text, **common)
     elif origin is dict:  # env_kwargs -> --env-kwarg, eval_env_kwargs -> --eval-env-kwarg
-        group.add_argument(flag(f.name).removesuffix("s"), type=_parse_env_kwarg, action="append",
+        group.add_argument(flag(f.name), type=_parse_env_kwarg, action="append",
                            metavar="KEY=VALUE", help=f"{doc} Repeatable.", **common)
     else:
         base = next((a for a in typing.get_args(hint) if a is not type(None)), hint)
