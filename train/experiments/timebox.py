@@ -154,4 +154,9 @@ def timebox(jobs: list, seconds_left: float, workers: int, say) -> list:
     say(f"speed: {speed.describe(cfg)}; {len(jobs)} runs, {min(workers, len(jobs))} at a time, in {left / 60:.1f} "
         f"min: {steps:,} steps per seed (predicted {predicted / 60:.1f} min, sized with a {MARGIN - 1:.0%} margin; "
         f"the budget's own: {cfg.run.steps:,})")
+    if predicted > left:
+        say(f"warning: even the shortest runs ({MIN_EVALUATIONS} evaluations, {steps:,} steps per seed) take about "
+            f"{predicted / 60:.1f} min here, more than the {max(left, 0) / 60:.1f} min left after measuring and the "
+            f"report's {REPORT_RESERVE_S:.0f} s: this will end late (give --minutes "
+            f"{math.ceil((predicted + seconds_left - left) / 60)} or more, or fewer --condition/--seeds)")
     return resize_jobs(jobs, steps)

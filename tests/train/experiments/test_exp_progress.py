@@ -76,6 +76,14 @@ def test_run_with_minutes_measures_the_machine_and_sizes_the_runs(tmp_path, caps
     assert "1 runs" in err.err and "[   new]" in err.out
 
 
+def test_run_with_too_few_minutes_says_it_will_end_late(tmp_path, capsys):
+    code = main(["run", "headline-waypoint", "--budget", "smoke", "--condition", "static-reset-free",
+                 "--minutes", "0.5", "--out", str(tmp_path), "--dry-run"])
+    assert code == 0
+    err = capsys.readouterr().err
+    assert "warning: even the shortest runs (2 evaluations" in err and "this will end late (give --minutes" in err
+
+
 def test_speed_is_measured_in_as_many_processes_as_will_train_side_by_side():
     from train.experiments.catalog import SMOKE, get_experiment, job_config
     from train.experiments.timebox import measure_speed_together
