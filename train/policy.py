@@ -112,13 +112,28 @@ class Policy:
             kwargs = {**kwargs, "dynamism": dynamism}
         return self._rollouts(kwargs, self, [self.seed], rollouts, eps, layout_seeds)
 
-    def random_draws(self, draws: int, rollouts: int = 100) -> EvalResult:
-        """A uniform random policy on the same ``rollouts`` validation layouts of the policy's test MDP, ``draws``
-        times with independent streams (one agent each, K = ``draws``): the spread of the random baseline that
-        ``evaluate(epsilon=1)`` draws once. Draw 0 is that one draw (the same exploration stream).
+    def random_draws(self, draws: int, rollouts: int = 100, dynamism: float | None = None) -> EvalResult:
+        """A uniform random policy on the same ``rollouts`` validation layouts of the policy's test MDP (with
+        ``dynamism`` if given), ``draws`` times with independent streams (one agent each, K = ``draws``): the
+        spread of the random baseline that ``evaluate(epsilon=1)`` draws once. Draw 0 is that one draw (the same
+        exploration stream).
         """
-        return self._rollouts(self.test_kwargs, UniformRandom(self._info.num_actions),
+        return self._rollouts(self.test_mdp(dynamism), UniformRandom(self._info.num_actions),
                               range(self.seed, self.seed + draws), rollouts, 1.0)
+
+    def test_mdp(self, dynamism: float | None = None) -> dict[str, Any]:
+        """`test_kwargs`, with the test MDP's dynamism replaced by ``dynamism`` if given."""
+        return self.test_kwargs if dynamism is None else {**self.test_kwargs, "dynamism": dynamism}
+
+    def describe_test_mdp(self, dynamism: float | None = None, horizon: bool = True) -> str:
+        """The test MDP in a few words: its horizon (if ``horizon``), its dynamism and the task parameters the
+        run set.
+        """
+        kwargs = self.test_mdp(dynamism)
+        p = float(kwargs["dynamism"])
+        words = [f"horizon {kwargs['horizon']}"] * horizon + ["static" if p == 0 else f"dynamism {p:g}"]
+        named = {**self.cfg.env.env_kwargs, **self.cfg.eval.eval_env_kwargs}
+        return ", ".join(words + [f"{key}={kwargs[key]}" for key in named if key in kwargs])
 
     def _rollouts(self, kwargs: dict[str, Any], agent: ActionValues, seeds: Sequence[int], rollouts: int,
                   epsilon: float, layout_seeds: Sequence[int] | None = None) -> EvalResult:

@@ -86,7 +86,7 @@ def test_the_grid_can_evaluate_in_a_dynamic_test_mdp(monkeypatch, cli):
     assert made == [0.2, 0.0]
     proc = cli("evaluate", str(shipped_policy("hunting")), "--test-dynamism", "0.2", "--horizons", "5",
                "--rollouts", "2")
-    assert "test MDP with dynamism 0.2" in proc.stdout
+    assert "test MDP (dynamism 0.2):" in proc.stdout
     bad = cli("evaluate", str(shipped_policy("hunting")), "--test-dynamism", "1.5", check=False)
     assert bad.returncode == 2 and "--test-dynamism" in bad.stderr
 

@@ -27,7 +27,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="exploration during evaluation (default: the run's, 0.1 in the paper)")
     parser.add_argument("--random-draws", type=positive, default=1, metavar="N",
                         help="evaluate the random policy N times with independent draws and print their mean, "
-                             "spread and range (default: 1; a single draw of 100 layouts varies by a few points)")
+                             "95 %% bootstrap interval, spread and range (default: 1; a single draw of 100 layouts "
+                             "varies by a few points); with --test-dynamism, in that test MDP")
     grid = parser.add_argument_group(
         "evaluation grid", "any of these options tabulates success at every (layouts, horizon, epsilon), split by "
         "whether an object needed first (salad: an ingredient) is in the first view, on the tasks that define one")
@@ -46,42 +47,74 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return parser
 
 
+MIN_DRAWS_FOR_CI = 10
+"""Fewer random draws than this print their mean and range without an interval (a bootstrap of a handful of
+draws is far too narrow)."""
+
+
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Print the policy's and a random policy's success and mean return."""
-    import numpy as np
-
     from train.policy import load_policy
+    from train.tasks import get_task
 
     with user_errors(ValueError, OSError, RunDirError):
-        if args.random_draws * args.rollouts > MAX_RANDOM_WORLDS:
-            raise ValueError(f"--random-draws {args.random_draws} x --rollouts {args.rollouts} would step "
-                             f"{args.random_draws * args.rollouts:,} worlds at once; keep it to {MAX_RANDOM_WORLDS:,} "
-                             f"(e.g. --random-draws {max(1, MAX_RANDOM_WORLDS // args.rollouts)})")
+        check_world_count(args.random_draws, args.rollouts)
         policy = load_policy(args.policy, args.agent)
+        metric = get_task(policy.task).metric
         grid_options = (args.epsilons, args.horizons, args.fresh, args.out, args.test_dynamism)
         if any(x is not None for x in grid_options) or args.no_split:
-            if args.random_draws != 1:
-                raise ValueError("--random-draws goes without the evaluation grid's options (the grid tabulates "
-                                 "--epsilons 1 for a random policy)")
+            if metric != "success":
+                raise ValueError(f"the evaluation grid tabulates success, and {policy.task} is measured by its "
+                                 f"return: evaluate it without the grid's options")
+            if args.random_draws != 1 and (args.epsilons, args.horizons, args.fresh) != (None, None, None):
+                raise ValueError("--random-draws goes without --epsilons, --horizons and --fresh (the grid tabulates "
+                                 "--epsilons 1 for a random policy); of the grid's options it takes --test-dynamism")
             return handle_grid(args, policy)
         results = {"policy": policy.evaluate(args.rollouts, args.epsilon),
                    "random": policy.random_draws(args.random_draws, args.rollouts)}
     eps = policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon
-    print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP:")
+    print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP ({policy.describe_test_mdp()}):")
     for name, r in results.items():
         how = f"epsilon {eps:g}" if name == "policy" else "uniform random"
-        steps = float(np.median(r.steps_to_solve[r.solved])) if r.solved.any() else math.nan
-        speed = "" if math.isnan(steps) else f", median {steps:g} steps to solve (solved layouts)"
-        print(f"  {name:>6s} ({how}): success {100 * r.success.mean():.{1 if len(r.success) > 1 else 0}f} %, "
-              f"mean return {r.returns.mean():.1f}{speed}")
+        print(f"  {name:>6s} ({how}): {outcome(r, metric)}")
     if args.random_draws > 1:
-        s = 100 * results["random"].success
-        half = 1.959964 * s.std(ddof=1) / math.sqrt(len(s))  # normal 95 % interval of the mean
-        low, high = max(s.mean() - half, 0.0), min(s.mean() + half, 100.0)
-        print(f"  random: the mean of {len(s)} independent draws, 95 % CI [{low:.1f}, {high:.1f}]; "
-              f"one draw's standard deviation {s.std(ddof=1):.1f} points, "
-              f"range {s.min():.0f}-{s.max():.0f} %")
+        print(draws_line(results["random"], metric))
     return 0
+
+
+def check_world_count(draws: int, rollouts: int) -> None:
+    """Refuse an evaluation that would step more than `MAX_RANDOM_WORLDS` worlds at once, naming the option."""
+    if draws * rollouts <= MAX_RANDOM_WORLDS:
+        return
+    if draws == 1:
+        raise ValueError(f"--rollouts {rollouts:,} would step {rollouts:,} worlds at once; keep it to "
+                         f"{MAX_RANDOM_WORLDS:,}")
+    raise ValueError(f"--random-draws {draws} x --rollouts {rollouts} would step {draws * rollouts:,} worlds at once; "
+                     f"keep it to {MAX_RANDOM_WORLDS:,} (e.g. --random-draws {max(1, MAX_RANDOM_WORLDS // rollouts)})")
+
+
+def outcome(result, metric: str) -> str:
+    """One agent's (or the draws' mean) success and mean return; the return alone on a task measured by it."""
+    import numpy as np
+
+    solved = result.solved
+    steps = float(np.median(result.steps_to_solve[solved])) if metric == "success" and solved.any() else math.nan
+    speed = "" if math.isnan(steps) else f", median {steps:g} steps to solve (solved layouts)"
+    success = "" if metric != "success" else f"success {100 * result.success.mean():.1f} %, "
+    return f"{success}mean return {result.returns.mean():.1f}{speed}"
+
+
+def draws_line(result, metric: str) -> str:
+    """The random draws' mean, its 95 % bootstrap interval (from `MIN_DRAWS_FOR_CI` draws), spread and range."""
+    from train.experiments.report.stats import bootstrap_ci
+
+    values = 100 * result.success if metric == "success" else result.returns
+    unit, what = (" %", "success") if metric == "success" else ("", "mean return")
+    mean, low, high = (float(v) for v in bootstrap_ci(values))
+    ci = (f", 95 % bootstrap CI [{low:.1f}, {high:.1f}]" if len(values) >= MIN_DRAWS_FOR_CI
+          else f" (no interval under {MIN_DRAWS_FOR_CI} draws)")
+    return (f"  random, {len(values)} independent draws: {what} {mean:.1f}{unit}{ci}; one draw's standard deviation "
+            f"{values.std(ddof=1):.1f}, range {values.min():.1f}-{values.max():.1f}{unit}")
 
 
 def handle_grid(args: argparse.Namespace, policy) -> int:
@@ -98,9 +131,12 @@ def handle_grid(args: argparse.Namespace, policy) -> int:
     horizons = args.horizons or [int(policy.test_kwargs["horizon"])]
     rows = evaluate_grid(policy, eps, horizons, args.rollouts, args.fresh or 0, split=not args.no_split,
                          dynamism=args.test_dynamism)
-    where = "" if args.test_dynamism is None else f", test MDP with dynamism {args.test_dynamism:g}"
-    print(f"{policy.task}, {policy.meta.get('source', args.policy)} (seed {policy.seed}){where}:")
+    print(f"{policy.task}, {policy.meta.get('source', args.policy)} (seed {policy.seed}), test MDP "
+          f"({policy.describe_test_mdp(args.test_dynamism, horizon=False)}):")
     print("\n".join(format_grid(rows)))
+    if args.random_draws > 1:
+        draws = policy.random_draws(args.random_draws, args.rollouts, dynamism=args.test_dynamism)
+        print(draws_line(draws, "success"))
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         with open(args.out, "w", newline="") as f:

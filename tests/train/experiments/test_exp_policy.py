@@ -240,11 +240,49 @@ def test_random_draws_spread_the_baseline_and_start_with_the_single_draw(run_dir
     np.testing.assert_array_equal(draws.steps_to_solve[0], single.steps_to_solve[0])  # draw 0 is the single draw
     assert len({tuple(row) for row in draws.steps_to_solve}) > 1  # the other draws are independent of it
     capsys.readouterr()
-    assert cli.main(["evaluate", str(out), "--rollouts", "20", "--random-draws", "6"]) == 0
+    assert cli.main(["evaluate", str(out), "--rollouts", "20", "--random-draws", "12"]) == 0
     printed = capsys.readouterr().out
-    assert f"success {100 * draws.success.mean():.1f} %" in printed
-    assert "the mean of 6 independent draws" in printed
+    twelve = 100 * policy.random_draws(12, rollouts=20).success
+    assert f"random, 12 independent draws: success {twelve.mean():.1f} %, 95 % bootstrap CI [" in printed
+    assert f"20 validation layouts of the test MDP (horizon {policy.test_kwargs['horizon']}, static):" in printed
+    assert cli.main(["evaluate", str(out), "--rollouts", "20", "--random-draws", "6"]) == 0
+    assert "6 independent draws: success" in (printed := capsys.readouterr().out) and "(no interval under 10" in printed
     assert cli.main(["evaluate", str(out), "--random-draws", "3", "--epsilons", "1"]) == 2
-    assert "--random-draws goes without" in capsys.readouterr().err
+    assert "--random-draws goes without --epsilons" in capsys.readouterr().err
     assert cli.main(["evaluate", str(out), "--random-draws", "5000"]) == 2
     assert "would step 500,000 worlds at once; keep it to 100,000 (e.g. --random-draws 1000)" in capsys.readouterr().err
+    assert cli.main(["evaluate", str(out), "--rollouts", "100001"]) == 2
+    assert "--rollouts 100,001 would step 100,001 worlds at once; keep it to 100,000" in capsys.readouterr().err
+
+
+def test_random_draws_follow_the_test_dynamism(run_dir, tmp_path, capsys):
+    out = tmp_path / "salad.npz"
+    assert cli.main(["export", str(run_dir), "--out", str(out)]) == 0
+    policy = load_policy_file(out)
+    moving = policy.random_draws(10, rollouts=20, dynamism=0.5)
+    assert not np.array_equal(moving.steps_to_solve, policy.random_draws(10, rollouts=20).steps_to_solve)
+    capsys.readouterr()
+    assert cli.main(["evaluate", str(out), "--rollouts", "20", "--random-draws", "10", "--test-dynamism", "0.5"]) == 0
+    printed = capsys.readouterr().out
+    assert "test MDP (dynamism 0.5):" in printed  # the grid's horizon is a column
+    assert "success [95% CI]" in printed  # the grid's table, then the draws
+    assert f"random, 10 independent draws: success {100 * moving.success.mean():.1f} %" in printed
+
+
+def test_a_task_measured_by_its_return_is_evaluated_by_its_return(capsys):
+    path = Path(__file__).resolve().parents[3] / "docs/results/paper/dynamism/foodcollector/dynamic-reset-free/policies"
+    policy = str(path / "best.npz")
+    assert cli.main(["evaluate", policy, "--rollouts", "1", "--random-draws", "2"]) == 0
+    printed = capsys.readouterr().out
+    assert "success" not in printed and "random, 2 independent draws: mean return" in printed
+    assert cli.main(["evaluate", policy, "--rollouts", "1", "--epsilons", "0"]) == 2
+    assert "foodcollector is measured by its return: evaluate it without the grid's options" in capsys.readouterr().err
+
+
+def test_the_test_mdp_is_named_with_the_task_parameters_a_run_set():
+    root = Path(__file__).resolve().parents[3] / "docs/results/paper"
+    make_axe = load_policy_file(root / "factory-make-axe/factory/dynamic-reset-free/policies/best.npz")
+    assert make_axe.describe_test_mdp() == "horizon 200, static, goal=make_axe"
+    released = load_policy_file(root / "hunting-released-fig4/hunting/dynamic-reset-free-waypoint/policies/best.npz")
+    assert released.describe_test_mdp() == "horizon 200, dynamism 0.2"
+    assert released.describe_test_mdp(dynamism=0) == "horizon 200, static"
