@@ -137,12 +137,20 @@ def main(argv: list[str] | None = None) -> None:
     if args.seeds < 2 or args.steps < 1:
         parser.error("--seeds must be >= 2 and --steps >= 1")
     params = parse_params(args.param)
+    names = args.setting or list(SETTINGS)
+    known = {field for name in names for field in TASKS[SETTINGS[name][0]].Config.__dataclass_fields__}
+    if unknown := sorted(set(params) - known):
+        parser.error(f"--param {', '.join(unknown)}: no selected setting's task has such a parameter "
+                     f"(they have: {', '.join(sorted(known))})")
     print(HEADER)
-    for name in args.setting or SETTINGS:
+    for name in names:
         task, knobs = SETTINGS[name]
         fields = TASKS[task].Config.__dataclass_fields__
         extra = {k: v for k, v in params.items() if k in fields}
-        stats = measure(task, {**knobs, **extra}, args.seeds, args.steps, name=name, progress=True)
+        try:
+            stats = measure(task, {**knobs, **extra}, args.seeds, args.steps, name=name, progress=True)
+        except (ValueError, TypeError) as err:
+            parser.error(f"setting {name!r} with --param {' '.join(args.param)}: {err}")
         print(stats.row(), flush=True)
 
 

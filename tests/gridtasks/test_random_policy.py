@@ -44,6 +44,15 @@ def test_cli_rejects_a_malformed_param():
         random_policy.main(["--param", "spawn_on_agent"])
 
 
+def test_cli_refuses_a_parameter_no_setting_has_and_a_bad_value_in_one_line(capsys):
+    with pytest.raises(SystemExit):
+        random_policy.main(["--setting", "factory move=0.2", "--param", "gaol=1"])
+    assert "--param gaol: no selected setting's task has such a parameter" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        random_policy.main(["--setting", "factory move=0.2", "--param", "goal=bogus", "--steps", "5"])
+    assert "unknown goal 'bogus'" in capsys.readouterr().err
+
+
 def test_unknown_task_is_refused():
     with pytest.raises(ValueError, match="unknown grid task"):
         random_policy.measure("chess", {})

@@ -69,9 +69,17 @@ def check_out_file(out: Path, what: str, example: str) -> None:
     check_out_dir(out.parent, out)
 
 
+def _integer(text: str, what: str) -> int:
+    """``text`` as an integer, or an argparse error naming ``what`` was expected."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text}") from None
+
+
 def positive(text: str) -> int:
     """An integer >= 1 (an argparse type)."""
-    value = int(text)
+    value = _integer(text, "a positive integer")
     if value < 1:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text}")
     return value
@@ -79,7 +87,7 @@ def positive(text: str) -> int:
 
 def nonnegative(text: str) -> int:
     """An integer >= 0, e.g. a seed (an argparse type)."""
-    value = int(text)
+    value = _integer(text, "an integer >= 0")
     if value < 0:
         raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text}")
     return value

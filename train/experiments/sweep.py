@@ -273,8 +273,8 @@ def plan_extras(cfg: TrainConfig) -> list[str]:
     default, parts = TrainConfig(), []
     for section, name in PLAN_EXTRAS:
         value = getattr(getattr(cfg, section), name)
-        if value == getattr(getattr(default, section), name):
-            continue
+        if value == getattr(getattr(default, section), name) or (name == "horizon" and cfg.env.reset_free):
+            continue  # a non-episodic run's horizon ends no episode
         items = value.items() if isinstance(value, dict) else [(name, value)]
         parts += [f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in items]
     return parts

@@ -76,6 +76,10 @@ def test_dry_run_names_the_settings_that_tell_two_conditions_apart(capsys, tmp_p
     assert cli.main(["run", "headline", "--budget", "paper", "--condition", "dynamic-episodic", "--dry-run",
                      "--out", str(tmp_path)]) == 0
     assert "lr=0.0003" in capsys.readouterr().out  # salad's tuned rate, beside the default 1e-4
+    assert cli.main(["run", "hunting-released-fig4", "--budget", "paper", "--dry-run", "--out", str(tmp_path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert all(("horizon=100" in line) == (", episodic," in line) for line in lines)  # only an episode ends by it
+    assert any("horizon=100" in line for line in lines)
 
 
 def test_run_all_plans_every_training_experiment_and_each_copy_once(capsys, tmp_path):

@@ -253,6 +253,9 @@ def test_random_draws_spread_the_baseline_and_start_with_the_single_draw(run_dir
     assert "would step 500,000 worlds at once; keep it to 100,000 (e.g. --random-draws 1000)" in capsys.readouterr().err
     assert cli.main(["evaluate", str(out), "--rollouts", "100001"]) == 2
     assert "--rollouts 100,001 would step 100,001 worlds at once; keep it to 100,000" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main(["evaluate", str(out), "--random-draws", "1.5"])
+    assert "--random-draws: expected a positive integer, got 1.5" in capsys.readouterr().err
 
 
 def test_random_draws_follow_the_test_dynamism(run_dir, tmp_path, capsys):
