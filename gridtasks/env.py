@@ -368,9 +368,11 @@ class GridTaskVectorEnv(VectorEnv):
 
     def _info(self) -> dict:
         s = self._state
+        products = list(self.template.products)
         return {"solved": self.last_solved, "caught": self.last_caught, "agent_pos": s["agent"].copy(),
                 "lifetime_step": s["lifetime_step"].copy(), "completions": s["completions"].copy(),
-                "made": s["made"][:, list(self.template.products)].sum(1)}
+                "made": s["made"][:, products].sum(1),  # every product: what the trainer logs
+                **{f"made_{NAMES[code]}": s["made"][:, code].copy() for code in products}}  # as the single env
 
     def render(self):
         """A tuple with one RGB frame per world."""

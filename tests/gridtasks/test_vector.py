@@ -38,6 +38,8 @@ def test_batched_worlds_match_single_envs_step_for_step(env_id, knobs):
                 obs, rew, term, trunc, info = env.step(int(actions[t, i]))
                 solved = info["solved"]
                 pending_reset[i] = term or trunc
+                made = {key: value for key, value in info.items() if key.startswith("made_")}
+                assert made == {key: vinfo[key][i] for key in made}  # the same per-product counts (if any)
             np.testing.assert_array_equal(vobs[i], obs, err_msg=f"world {i} step {t}")
             assert (vrew[i], vterm[i], vtrunc[i], vinfo["solved"][i]) == (rew, term, trunc, solved)
 
