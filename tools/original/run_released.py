@@ -281,6 +281,7 @@ def hook_epoch_end(out: Path, total: int, offset: int, checkpoint_every: int, re
 def main(argv: list[str] | None = None) -> None:
     """Run one seed of one sweep point, or continue one from its checkpoint."""
     args = parse_args(argv)
+    shims.check_checkout(args.checkout)
     script = args.checkout / SCRIPTS.get(args.script, args.script)
     if not script.is_file():
         raise SystemExit(f"no script {script}; name one of {', '.join(SCRIPTS)} or a path inside --checkout")

@@ -80,12 +80,18 @@ def _package(name: str, folder: Path) -> types.ModuleType:
     return module
 
 
-def install(checkout: Path) -> None:
-    """Put the released checkout at ``checkout`` on the path with the three adjustments above."""
+def check_checkout(checkout: Path) -> Path:
+    """``checkout`` resolved, or a one-line exit if it holds no checkout of the release."""
     checkout = checkout.resolve()
     if not (checkout / "rlkit" / "envs" / "gym_minigrid" / "gym_minigrid" / "envs" / "deer.py").is_file():
         raise SystemExit(f"{checkout} is not a checkout of jcoreyes/ecologicalrl (no rlkit/envs/gym_minigrid); "
                          "pass --checkout PATH to one")
+    return checkout
+
+
+def install(checkout: Path) -> None:
+    """Put the released checkout at ``checkout`` on the path with the three adjustments above."""
+    checkout = check_checkout(checkout)
     import torch  # noqa: F401  (before the Qt stand-ins, so torch's own imports never see them)
 
     sys.path.insert(0, str(checkout))
