@@ -142,15 +142,18 @@ def main(argv: list[str] | None = None) -> None:
     if unknown := sorted(set(params) - known):
         parser.error(f"--param {', '.join(unknown)}: no selected setting's task has such a parameter "
                      f"(they have: {', '.join(sorted(known))})")
-    print(HEADER)
-    for name in names:
+    settings = {}
+    for name in names:  # every setting's configuration checked before the first is measured
         task, knobs = SETTINGS[name]
         fields = TASKS[task].Config.__dataclass_fields__
-        extra = {k: v for k, v in params.items() if k in fields}
+        settings[name] = task, {**knobs, **{k: v for k, v in params.items() if k in fields}}
         try:
-            stats = measure(task, {**knobs, **extra}, args.seeds, args.steps, name=name, progress=True)
+            GridTaskVectorEnv(TASKS[task], 1, reset_free=True, reward="sparse", **settings[name][1]).close()
         except (ValueError, TypeError) as err:
             parser.error(f"setting {name!r} with --param {' '.join(args.param)}: {err}")
+    print(HEADER)
+    for name, (task, knobs) in settings.items():
+        stats = measure(task, knobs, args.seeds, args.steps, name=name, progress=True)
         print(stats.row(), flush=True)
 
 

@@ -127,13 +127,14 @@ class Policy:
 
     def describe_test_mdp(self, dynamism: float | None = None, horizon: bool = True) -> str:
         """The test MDP in a few words: its horizon (if ``horizon``), its dynamism and the task parameters the
-        run set.
+        run set, at their values in the test MDP.
         """
         kwargs = self.test_mdp(dynamism)
         p = float(kwargs["dynamism"])
-        words = [f"horizon {kwargs['horizon']}"] * horizon + ["static" if p == 0 else f"dynamism {p:g}"]
+        words = [f"horizon {kwargs['horizon']}"] if horizon else []
+        words.append("static" if p == 0 else f"dynamism {p:g}")
         named = {**self.cfg.env.env_kwargs, **self.cfg.eval.eval_env_kwargs}
-        return ", ".join(words + [f"{key}={kwargs[key]}" for key in named if key in kwargs])
+        return ", ".join(words + [f"{key}={kwargs[key]}" for key in named])
 
     def _rollouts(self, kwargs: dict[str, Any], agent: ActionValues, seeds: Sequence[int], rollouts: int,
                   epsilon: float, layout_seeds: Sequence[int] | None = None) -> EvalResult:

@@ -39,7 +39,7 @@ def test_batched_worlds_match_single_envs_step_for_step(env_id, knobs):
                 solved = info["solved"]
                 pending_reset[i] = term or trunc
                 made = {key: value for key, value in info.items() if key.startswith("made_")}
-                assert made == {key: vinfo[key][i] for key in made}  # the same per-product counts (if any)
+                assert made == {key: vinfo[key][i] for key in vinfo if key.startswith("made_")}  # per product
             np.testing.assert_array_equal(vobs[i], obs, err_msg=f"world {i} step {t}")
             assert (vrew[i], vterm[i], vtrunc[i], vinfo["solved"][i]) == (rew, term, trunc, solved)
 

@@ -86,7 +86,7 @@ def test_resume_inherits_every_setting_and_may_grow_the_run(tmp_path, capsys):
     (["--lr", "0.001"], "with --lr 0.001: the run was made with 0.0003"),
     (["--seeds", "3"], "with --seeds 3: the run was made with 2"),
     (["--eval-rollouts", "5"], "with --eval-rollouts 5: the run was made with 2"),
-    (["--env-kwarg", "initial_count=1"], "with --env-kwarg initial_count=1: the run was made with {}"),
+    (["--env-kwarg", "initial_count=1"], "with --env-kwarg initial_count=1: the run was made with none"),
 ])
 def test_resume_refuses_a_change_of_results(finished, flags, message, capsys):
     before = (finished / "config.json").read_bytes()

@@ -27,8 +27,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="exploration during evaluation (default: the run's, 0.1 in the paper)")
     parser.add_argument("--random-draws", type=positive, default=1, metavar="N",
                         help="evaluate the random policy N times with independent draws and print their mean, "
-                             "95 %% bootstrap interval, spread and range (default: 1; a single draw of 100 layouts "
-                             "varies by a few points); with --test-dynamism, in that test MDP")
+                             "95 %% bootstrap interval (from 10 draws), spread and range (default: 1; a single "
+                             "draw of 100 layouts varies by a few points); with --test-dynamism, in that test MDP")
     grid = parser.add_argument_group(
         "evaluation grid", "any of these options tabulates success at every (layouts, horizon, epsilon), split by "
         "whether an object needed first (salad: an ingredient) is in the first view, on the tasks that define one")
@@ -53,7 +53,9 @@ draws is far too narrow)."""
 
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    """Print the policy's and a random policy's success and mean return."""
+    """Print the policy's and a random policy's success and mean return (the return alone on a task measured
+    by it), and with ``--random-draws`` the spread of the random baseline.
+    """
     from train.policy import load_policy
     from train.tasks import get_task
 
@@ -74,10 +76,10 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
                    "random": policy.random_draws(args.random_draws, args.rollouts)}
     eps = policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon
     print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP ({policy.describe_test_mdp()}):")
-    for name, r in results.items():
-        how = f"epsilon {eps:g}" if name == "policy" else "uniform random"
-        print(f"  {name:>6s} ({how}): {outcome(r, metric)}")
-    if args.random_draws > 1:
+    print(f"  policy (epsilon {eps:g}): {outcome(results['policy'], metric)}")
+    if args.random_draws == 1:
+        print(f"  random (uniform random): {outcome(results['random'], metric)}")
+    else:
         print(draws_line(results["random"], metric))
     return 0
 
@@ -109,12 +111,13 @@ def draws_line(result, metric: str) -> str:
     from train.experiments.report.stats import bootstrap_ci
 
     values = 100 * result.success if metric == "success" else result.returns
-    unit, what = (" %", "success") if metric == "success" else ("", "mean return")
+    unit, spread_unit, what = (" %", " points", "success") if metric == "success" else ("", "", "mean return")
     mean, low, high = (float(v) for v in bootstrap_ci(values))
     ci = (f", 95 % bootstrap CI [{low:.1f}, {high:.1f}]" if len(values) >= MIN_DRAWS_FOR_CI
           else f" (no interval under {MIN_DRAWS_FOR_CI} draws)")
-    return (f"  random, {len(values)} independent draws: {what} {mean:.1f}{unit}{ci}; one draw's standard deviation "
-            f"{values.std(ddof=1):.1f}, range {values.min():.1f}-{values.max():.1f}{unit}")
+    return (f"  random (uniform random), {len(values)} independent draws: {what} {mean:.1f}{unit}{ci}; one draw's "
+            f"standard deviation {values.std(ddof=1):.1f}{spread_unit}, range [{values.min():.1f}, "
+            f"{values.max():.1f}]{unit}")
 
 
 def handle_grid(args: argparse.Namespace, policy) -> int:

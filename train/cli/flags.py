@@ -18,8 +18,8 @@ SKIPPED_FIELDS = ("task",)
 
 
 def flag(name: str) -> str:
-    """The command-line spelling of a field name (a dict field takes one KEY=VALUE a flag: env_kwargs ->
-    --env-kwarg).
+    """The command-line spelling of a field name; a ``*_kwargs`` field (a dict) takes one KEY=VALUE a flag, so
+    its flag is singular: env_kwargs -> --env-kwarg.
     """
     spelling = "--" + name.replace("_", "-")
     return spelling.removesuffix("s") if name.endswith("_kwargs") else spelling
@@ -95,5 +95,5 @@ def shown(value: Any) -> str:
     if isinstance(value, (list, tuple)):
         return " ".join(map(str, value))
     if isinstance(value, dict):
-        return " ".join(f"{k}={json.dumps(v)}" for k, v in value.items()) or "{}"
+        return " ".join(f"{k}={json.dumps(v)}" for k, v in value.items()) or "none"
     return str(value)

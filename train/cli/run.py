@@ -109,7 +109,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         from train.experiments.timebox import timebox
 
         jobs = timebox(jobs, args.minutes * 60 - (time.monotonic() - began), args.jobs or os.cpu_count() or 1,
-                       lambda line: print(line, file=sys.stderr))
+                       lambda line: print(line, file=sys.stderr), asked_seconds=args.minutes * 60)
     if args.dry_run:
         print_plan(jobs)
         return 0

@@ -106,7 +106,7 @@ def measure_speed_together(config: dict[str, Any], copies: int) -> Speed:
 def fit_steps(speed: Speed, config: dict[str, Any], jobs: int, workers: int, seconds: float) -> int:
     """The most steps per seed (a multiple of the evaluation interval, at most the configuration's own) that
     ``jobs`` runs of ``config``, ``workers`` at a time, finish in ``seconds``; at least `MIN_EVALUATIONS`
-    intervals.
+    intervals, even where that is more than the time or the configuration's own steps allow.
     """
     cfg = TrainConfig.from_dict(config)
     waves = math.ceil(jobs / max(1, min(workers, jobs)))
@@ -137,9 +137,11 @@ REPORT_RESERVE_S = 75.0
 """Seconds kept at the end of a time budget for the report (figures, videos)."""
 
 
-def timebox(jobs: list, seconds_left: float, workers: int, say) -> list:
+def timebox(jobs: list, seconds_left: float, workers: int, say, asked_seconds: float | None = None) -> list:
     """Measure this machine on the first job and size every job to end ``seconds_left`` from now, less the
     report's reserve; ``say`` prints a line. Jobs already longer than that keep their own steps when done.
+    ``asked_seconds``: the whole time the user gave (default ``seconds_left``), for the advice when even the
+    shortest runs do not fit.
     """
     if not jobs or any(j.is_measurement for j in jobs):
         return jobs
@@ -151,12 +153,13 @@ def timebox(jobs: list, seconds_left: float, workers: int, say) -> list:
     steps = fit_steps(speed, jobs[0].config, len(jobs), workers, left)
     waves = math.ceil(len(jobs) / max(1, min(workers, len(jobs))))
     predicted = waves * speed.run_seconds(cfg.replace(steps=steps), margin=1.0)
-    say(f"speed: {speed.describe(cfg)}; {len(jobs)} runs, {min(workers, len(jobs))} at a time, in {left / 60:.1f} "
-        f"min: {steps:,} steps per seed (predicted {predicted / 60:.1f} min, sized with a {MARGIN - 1:.0%} margin; "
-        f"the budget's own: {cfg.run.steps:,})")
+    say(f"speed: {speed.describe(cfg)}; {len(jobs)} runs, {min(workers, len(jobs))} at a time, in "
+        f"{max(left, 0) / 60:.1f} min: {steps:,} steps per seed (predicted {predicted / 60:.1f} min, sized with a "
+        f"{MARGIN - 1:.0%} margin; the budget's own: {cfg.run.steps:,})")
     if predicted > left:
-        say(f"warning: even the shortest runs ({MIN_EVALUATIONS} evaluations, {steps:,} steps per seed) take about "
-            f"{predicted / 60:.1f} min here, more than the {max(left, 0) / 60:.1f} min left after measuring and the "
-            f"report's {REPORT_RESERVE_S:.0f} s: this will end late (give --minutes "
-            f"{math.ceil((predicted + seconds_left - left) / 60)} or more, or fewer --condition/--seeds)")
+        asked = seconds_left if asked_seconds is None else asked_seconds
+        say(f"warning: even the shortest runs ({MIN_EVALUATIONS} evaluation intervals, {steps:,} steps per seed) "
+            f"take about {predicted / 60:.1f} min here, more than the {max(left, 0) / 60:.1f} min left after "
+            f"measuring and the report's {REPORT_RESERVE_S:.0f} s: this will end late (give --minutes "
+            f"{math.ceil((asked + predicted - left) / 60) + 1} or more, or fewer --condition/--seeds)")
     return resize_jobs(jobs, steps)

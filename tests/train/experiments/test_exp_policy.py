@@ -243,7 +243,7 @@ def test_random_draws_spread_the_baseline_and_start_with_the_single_draw(run_dir
     assert cli.main(["evaluate", str(out), "--rollouts", "20", "--random-draws", "12"]) == 0
     printed = capsys.readouterr().out
     twelve = 100 * policy.random_draws(12, rollouts=20).success
-    assert f"random, 12 independent draws: success {twelve.mean():.1f} %, 95 % bootstrap CI [" in printed
+    assert f"12 independent draws: success {twelve.mean():.1f} %, 95 % bootstrap CI [" in printed
     assert f"20 validation layouts of the test MDP (horizon {policy.test_kwargs['horizon']}, static):" in printed
     assert cli.main(["evaluate", str(out), "--rollouts", "20", "--random-draws", "6"]) == 0
     assert "6 independent draws: success" in (printed := capsys.readouterr().out) and "(no interval under 10" in printed
@@ -269,7 +269,7 @@ def test_random_draws_follow_the_test_dynamism(run_dir, tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "test MDP (dynamism 0.5):" in printed  # the grid's horizon is a column
     assert "success [95% CI]" in printed  # the grid's table, then the draws
-    assert f"random, 10 independent draws: success {100 * moving.success.mean():.1f} %" in printed
+    assert f"random (uniform random), 10 independent draws: success {100 * moving.success.mean():.1f} %" in printed
 
 
 def test_a_task_measured_by_its_return_is_evaluated_by_its_return(capsys):
@@ -277,7 +277,7 @@ def test_a_task_measured_by_its_return_is_evaluated_by_its_return(capsys):
     policy = str(path / "best.npz")
     assert cli.main(["evaluate", policy, "--rollouts", "1", "--random-draws", "2"]) == 0
     printed = capsys.readouterr().out
-    assert "success" not in printed and "random, 2 independent draws: mean return" in printed
+    assert "success" not in printed and "random (uniform random), 2 independent draws: mean return" in printed
     assert cli.main(["evaluate", policy, "--rollouts", "1", "--epsilons", "0"]) == 2
     assert "foodcollector is measured by its return: evaluate it without the grid's options" in capsys.readouterr().err
 
