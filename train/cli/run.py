@@ -97,7 +97,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         exp = get_experiment(names[0])
     except ValueError as err:
         parser.error(str(err))
-    from train.experiments.sweep import plan, print_plan, write_experiment_file  # torch: seconds to import
+    from train.experiments.sweep import plan, write_experiment_file  # torch: seconds to import
 
     try:
         jobs = plan(exp, args.budget, args.out, args.task, args.seeds, args.steps, args.condition, args.restart,
@@ -111,7 +111,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         jobs = timebox(jobs, args.minutes * 60 - (time.monotonic() - began), args.jobs or os.cpu_count() or 1,
                        lambda line: print(line, file=sys.stderr), asked_seconds=args.minutes * 60)
     if args.dry_run:
-        print_plan(jobs)
+        _print_dry_run(jobs, args)
         return 0
     with user_errors(ValueError, OSError):
         write_experiment_file(exp, args.budget, jobs, args.out)
@@ -137,15 +137,28 @@ def _check_out_and_device(args: argparse.Namespace) -> None:
             check_device(args.device)
 
 
+def _packing(args: argparse.Namespace) -> int:
+    """How `run_jobs` packs: 0 not at all, else into up to this many processes (one on a GPU)."""
+    gpu = (args.device or "cpu").startswith("cuda")
+    return 1 if gpu else (args.jobs or os.cpu_count() or 1) if args.pack else 0
+
+
+def _print_dry_run(jobs: list, args: argparse.Namespace) -> None:
+    """The plan, and the packs it would train."""
+    from train.experiments.sweep import print_packs, print_plan
+
+    print_plan(jobs)
+    if pack := _packing(args):
+        print_packs(jobs, pack)
+
+
 def _execute(jobs: list, args: argparse.Namespace, where: Path) -> list | None:
     """Run the jobs (packed on a GPU or with --pack); their results, or None after Ctrl-C (said on stderr)."""
     from train.experiments.sweep import run_jobs
 
     try:
         with user_errors(RuntimeError):
-            gpu = (args.device or "cpu").startswith("cuda")
-            pack = 1 if gpu else (args.jobs or os.cpu_count() or 1) if args.pack else 0
-            return run_jobs(jobs, args.executor, args.jobs, args.address, args.progress, pack)
+            return run_jobs(jobs, args.executor, args.jobs, args.address, args.progress, _packing(args))
     except KeyboardInterrupt:
         print(f"interrupted: running conditions saved a checkpoint; re-run the same command to resume "
               f"({where})", file=sys.stderr)
@@ -155,7 +168,7 @@ def _execute(jobs: list, args: argparse.Namespace, where: Path) -> list | None:
 def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, names: list[str]) -> int:
     """Several experiments as one sweep (`train.experiments.multi`)."""
     from train.experiments.multi import fill_copies, plan_many, split_copies
-    from train.experiments.sweep import print_plan, write_experiment_file
+    from train.experiments.sweep import write_experiment_file
 
     for flag, value in (("--minutes", args.minutes), ("--restart", args.restart), ("--first-seed", args.first_seed)):
         if value:
@@ -168,7 +181,7 @@ def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, name
     _check_out_and_device(args)
     train, copies = split_copies(jobs)
     if args.dry_run:
-        print_plan(train)
+        _print_dry_run(train, args)
         for copy, original in copies:
             print(f"[  copy] {copy.name}: the same run as {original.name}, copied when it finishes")
         return 0

@@ -73,9 +73,11 @@ class Pack:
 
     @property
     def name(self) -> str:
-        """experiment/task/[condition, ...]."""
+        """experiment/task/[condition, ...]; task/[experiment/condition, ...] for a pack across experiments."""
         first = self.jobs[0]
-        return f"{first.experiment}/{first.task}/[{', '.join(j.condition for j in self.jobs)}]"
+        if all(j.experiment == first.experiment for j in self.jobs):
+            return f"{first.experiment}/{first.task}/[{', '.join(j.condition for j in self.jobs)}]"
+        return f"{first.task}/[{', '.join(f'{j.experiment}/{j.condition}' for j in self.jobs)}]"
 
     @property
     def cost(self) -> float:

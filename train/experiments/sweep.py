@@ -294,10 +294,23 @@ def print_plan(jobs: Sequence[Job], file=None) -> None:
                     f"{'reset-free' if c.env.reset_free else 'episodic'}, "
                     f"reward={c.env.reward}{', rnd' if c.rnd.rnd else ''}")
             what += "".join(f", {extra}" for extra in plan_extras(c))
+            if c.run.first_seed:
+                what += f", seeds {c.run.first_seed}-{c.run.first_seed + c.run.seeds - 1}"
         clash = "" if job.restart or job.is_measurement else settings_clash(job)
         state = "restart" if job.restart else "clash" if clash else "done" if _safe_is_done(job) else (
             "resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists() else "new")
         print(f"[{state:>6s}] {job.name}: {what}{clash}", file=file)
+
+
+def print_packs(jobs: Sequence[Job], pack: int, file=None) -> None:
+    """One line per pack that `run_jobs` would form from the jobs not yet done (``pack`` as there)."""
+    from train.experiments.jobs import Pack
+
+    todo = [j for j in jobs if not _safe_is_done(j)]
+    for unit in pack_jobs(todo, pack):
+        if isinstance(unit, Pack):
+            seeds = sum(TrainConfig.from_dict(j.config).run.seeds for j in unit.jobs)
+            print(f"[  pack] {unit.name}: trained as one process, {seeds} seeds", file=file or sys.stdout)
 
 
 def settings_clash(job: Job) -> str:

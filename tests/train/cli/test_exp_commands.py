@@ -82,6 +82,23 @@ def test_dry_run_names_the_settings_that_tell_two_conditions_apart(capsys, tmp_p
     assert any("horizon=100" in line for line in lines)
 
 
+def test_dry_run_shows_the_packs_and_the_seed_range(capsys, tmp_path):
+    both = ["run", "factory-make-axe", "--budget", "paper", "--condition", "static-reset-free", "static-episodic",
+            "--dry-run", "--out", str(tmp_path)]
+    assert cli.main(both + ["--pack", "--jobs", "1", "--first-seed", "10"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-1] == ("[  pack] factory-make-axe/factory/[static-episodic, static-reset-free]: trained as one "
+                         "process, 20 seeds")
+    assert all(line.endswith(", seeds 10-19") for line in lines[:-1]) and len(lines) == 3
+    assert cli.main(both) == 0
+    assert "[  pack]" not in capsys.readouterr().out  # without --pack, one process per condition
+    assert cli.main(["run", "headline", "headline-waypoint", "--budget", "smoke", "--task", "salad", "--condition",
+                     "static-reset-free", "--pack", "--jobs", "1", "--dry-run", "--out", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == ("[  pack] salad/[headline/static-reset-free, "
+                                                        "headline-waypoint/static-reset-free]: trained as one "
+                                                        "process, 4 seeds")
+
+
 def test_run_all_plans_every_training_experiment_and_each_copy_once(capsys, tmp_path):
     assert cli.main(["run", "--all", "--budget", "paper", "--task", "salad", "--dry-run", "--out", str(tmp_path)]) == 0
     lines = capsys.readouterr().out.splitlines()
