@@ -105,12 +105,7 @@ class Policy:
         ``dynamism`` the test MDP's (0, static, in the paper's protocol).
         """
         eps = self.cfg.eval.eval_epsilon if epsilon is None else epsilon
-        ev = self.cfg.eval
-        kwargs = (self.test_kwargs if horizon is None else
-                  evaluation_kwargs(self._info.test_kwargs, horizon, ev.eval_dynamism, ev.eval_env_kwargs))
-        if dynamism is not None:
-            kwargs = {**kwargs, "dynamism": dynamism}
-        return self._rollouts(kwargs, self, [self.seed], rollouts, eps, layout_seeds)
+        return self._rollouts(self.test_mdp(dynamism, horizon), self, [self.seed], rollouts, eps, layout_seeds)
 
     def random_draws(self, draws: int, rollouts: int = 100, dynamism: float | None = None) -> EvalResult:
         """A uniform random policy on the same ``rollouts`` validation layouts of the policy's test MDP (with
@@ -121,9 +116,14 @@ class Policy:
         return self._rollouts(self.test_mdp(dynamism), UniformRandom(self._info.num_actions),
                               range(self.seed, self.seed + draws), rollouts, 1.0)
 
-    def test_mdp(self, dynamism: float | None = None) -> dict[str, Any]:
-        """`test_kwargs`, with the test MDP's dynamism replaced by ``dynamism`` if given."""
-        return self.test_kwargs if dynamism is None else {**self.test_kwargs, "dynamism": dynamism}
+    def test_mdp(self, dynamism: float | None = None, horizon: int | None = None) -> dict[str, Any]:
+        """`test_kwargs`, with the test MDP's dynamism replaced by ``dynamism`` and each rollout ``horizon`` long,
+        where given.
+        """
+        ev = self.cfg.eval
+        kwargs = (self.test_kwargs if horizon is None else
+                  evaluation_kwargs(self._info.test_kwargs, horizon, ev.eval_dynamism, ev.eval_env_kwargs))
+        return kwargs if dynamism is None else {**kwargs, "dynamism": dynamism}
 
     def describe_test_mdp(self, dynamism: float | None = None, horizon: bool = True) -> str:
         """The test MDP in a few words: its horizon (if ``horizon``), its dynamism and the task parameters the
