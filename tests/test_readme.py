@@ -72,3 +72,16 @@ def test_every_readme_python_block_runs(index, tmp_path):
     proc = subprocess.run([sys.executable, "-c", blocks("python")[index]], cwd=tmp_path, capture_output=True,
                           text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(REPO)})
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_the_package_data_every_installation_needs_is_declared():
+    """The paper's numbers and the trained policies live in train/data and travel in wheels: every file there
+    matches a package-data pattern of pyproject.toml (a new file type would otherwise be left out of wheels).
+    """
+    tomllib = pytest.importorskip("tomllib")
+    patterns = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["train"]
+    data = REPO / "train" / "data"
+    files = [p for p in data.rglob("*") if p.is_file() and "__pycache__" not in p.parts]
+    assert {p.parent.name for p in files} == {"paper", "policies"}
+    missing = [p for p in files if not any(p.relative_to(REPO / "train").match(pattern) for pattern in patterns)]
+    assert not missing, f"not in pyproject.toml's package-data: {missing}"

@@ -4,7 +4,7 @@ A run's ``checkpoint.npz`` holds every seed's networks, the optimiser, the repla
 environments' state (tens to hundreds of MB). A *policy file* (``.npz``) holds what acting needs: one seed's
 online parameters, the run's `TrainConfig` (which fixes the network and the task) and a little provenance
 (source run, seed, step, validation success). ``ecorl export`` writes one; ``ecorl video`` reads either,
-and by default the policy shipped for the task in ``assets/policies/``.
+and by default the policy shipped for the task in ``train/data/policies/``.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from train.storage.safeio import load_json, loads_json, open_regular, read_npy, 
 from train.storage.statecheck import check_counter
 from train.tasks import get_task, probe
 
-POLICY_DIR = Path(__file__).resolve().parents[1] / "assets" / "policies"
+POLICY_DIR = Path(__file__).resolve().parent / "data" / "policies"
 """Where the repository keeps one trained policy per grid task (``<task>.npz``)."""
 
 POLICY_FORMAT = 1

@@ -346,7 +346,7 @@ def test_sizes_a_file_sets_are_capped_before_use(tmp_path, capsys):
     from train import cli
     from train.policy import load_policy_file
 
-    policy = load_policy_file(sorted((REPO / "assets" / "policies").glob("*.npz"))[0])
+    policy = load_policy_file(sorted((REPO / "train" / "data" / "policies").glob("*.npz"))[0])
     header = {"format": 1, "config": policy.cfg.to_dict(), "seed": policy.seed, "meta": {}}
     for section, key, value in (("eval", "eval_horizon", 10**12), ("eval", "eval_rollouts", 10**9),
                                 ("run", "threads", 10**6)):
@@ -413,7 +413,7 @@ def test_four_inputs_that_raised_tracebacks_are_one_line_answers(tmp_path, capsy
         raise KeyboardInterrupt
 
     monkeypatch.setattr(Policy, "evaluate", interrupted)  # Ctrl-C during an evaluation
-    shipped = sorted((REPO / "assets" / "policies").glob("*.npz"))[0]
+    shipped = sorted((REPO / "train" / "data" / "policies").glob("*.npz"))[0]
     assert cli.main(["evaluate", str(shipped), "--rollouts", "1"]) == 130
     assert capsys.readouterr().err.strip() == "ecorl evaluate: interrupted"
 

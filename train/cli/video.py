@@ -21,7 +21,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
         "video", help="an MP4 of a rollout (trained or random policy)",
         description="Render a rollout to an MP4, headless, in the task's test MDP (or its training env). "
                     "The acting policy is, in order: --policy (one seed of a run, or a policy file), --random, "
-                    "or else the trained policy shipped for the task in assets/policies/ (random if none).")
+                    "or else the trained policy shipped for the task in train/data/policies/ (random if none).")
     parser.add_argument("task", choices=tuple(TASKS), metavar="TASK", help=f"one of: {', '.join(TASKS)}")
     source = parser.add_mutually_exclusive_group()
     source.add_argument("--policy", type=Path, metavar="RUN_DIR_OR_FILE",

@@ -142,7 +142,7 @@ def test_run_overrides_change_seeds_and_steps(tmp_path):
 
 
 def test_paper_numbers_name_real_experiments_and_conditions():
-    files = sorted((REPO / "assets" / "paper").glob("*.json"))
+    files = sorted((REPO / "train" / "data" / "paper").glob("*.json"))
     assert len(files) >= 6
     seen_exact = seen_approx = 0
     for path in files:

@@ -145,6 +145,31 @@ def test_the_demo_page_draws_the_live_contrast_on_its_shipped_runs_and_says_if_i
     assert any("the decisive runs: docs/results/paper/headline-waypoint" in line for line in summary)
 
 
+def test_a_demo_page_without_the_shipped_runs_says_where_they_are(tmp_path, monkeypatch):
+    """A pip installation carries no docs/results/paper: the page and the terminal say so instead of dropping
+    the lead in silence.
+    """
+    import json
+
+    from train.experiments.catalog import get_experiment
+    from train.experiments.report import runs
+    from train.experiments.report.lead import run_summary
+    from train.storage.rundir import EXPERIMENT_FILE
+
+    exp = get_experiment("headline-waypoint")
+    root = tmp_path / "results" / exp.name
+    run = root / "salad" / "static-reset-free"
+    run.mkdir(parents=True)
+    (root / EXPERIMENT_FILE).write_text(json.dumps({**exp.describe(), "budget": "quick"}))
+    (run / "metrics.csv").write_text("step,seed,epsilon,loss,success,return,train_reward,steps_per_s\n"
+                                     "50000,0,0.5,0,0.0,0,0,1\n")
+    monkeypatch.setattr(runs, "REFERENCE_DIR", tmp_path / "site-packages" / "docs" / "results" / "paper")
+    make_report(root, videos=False)
+    note = "come with the source repository, not with a pip installation"
+    assert note in (root / "report.md").read_text() and note in (root / "index.html").read_text()
+    assert note in run_summary(root)[-1]
+
+
 def test_videos_are_h264_padded_to_even_sizes_and_byte_stable(tmp_path):
     import cv2
     import numpy as np

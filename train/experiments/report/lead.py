@@ -166,6 +166,16 @@ def lead_names(experiments: list[str], source: Path) -> list[str]:
     return list(dict.fromkeys(n for e in experiments for n in LEAD.get(e, ())))
 
 
+def missing_shipped_note(experiments: list[str], source: Path) -> str:
+    """One sentence when a page of ``experiments`` would lead with shipped runs that this installation lacks (a
+    wheel carries the code and the paper's numbers, not ``docs/results/paper``); else ''.
+    """
+    if runs.REFERENCE_DIR.is_dir() or not lead_names(experiments, source):
+        return ""
+    return ("The shipped paper-budget runs this page leads with (docs/results/paper/) come with the source "
+            "repository, not with a pip installation: run from a clone to see your runs beside them.")
+
+
 def lead_markdown(leads: list[Lead], out: Path, table) -> list[str]:
     """The lead as markdown lines (``table(rows, columns)`` makes a table)."""
     if not leads:
@@ -223,4 +233,5 @@ def run_summary(path: Path) -> list[str]:
             if sentence:
                 lines.append(f"{name} at the paper's budget (shipped, 10 seeds, the decisive runs: "
                              f"{source_name(shipped)}): {sentence}")
-    return lines
+    note = missing_shipped_note([exp.name], path)
+    return [*lines, note] if note else lines

@@ -9,7 +9,7 @@ and writes into DIR:
   points of training, for experiments that ask for them (Fig. 2, 9, 10); a second directory of the same
   experiment in one report names its figures after itself (`figure_stems`);
 * ``report.md``: final success (or return) per condition, mean ± 95% CI over seeds at the last
-  evaluation, beside the paper's numbers (``assets/paper/*.json``; ≈ marks values read from a figure or
+  evaluation, beside the paper's numbers (``train/data/paper/*.json``; ≈ marks values read from a figure or
   quoted in the text, = values from a table), and Table 1 measurements;
 * ``index.html``: all of it on one static page, with the rollout videos found in the run directories
   (``video.mp4``) or in DIR, re-encoded to WebM so that browsers play them.
@@ -32,7 +32,15 @@ from train.experiments.report.figures import (
     plot_seed_curves,
     reference_label,
 )
-from train.experiments.report.lead import Lead, build_leads, lead_html, lead_markdown, lead_names, source_name
+from train.experiments.report.lead import (
+    Lead,
+    build_leads,
+    lead_html,
+    lead_markdown,
+    lead_names,
+    missing_shipped_note,
+    source_name,
+)
 from train.experiments.report.paper import load_paper
 from train.experiments.report.runs import (
     REFERENCE_DIR,
@@ -171,6 +179,8 @@ def write_markdown(source: Path, out: Path, sections: Sequence[Section], leads: 
              "from a figure or quoted in the paper's text (approximate), **=** a value from a table (exact), — "
              "the paper reports no number.", ""]
     lines += lead_markdown(list(leads), out, _md_table)
+    note = missing_shipped_note([s.exp.name for s in sections], source)
+    lines += [note, ""] if note else []
     if leads:
         lines += [f"**Below: {LIVE_NOTE}**", ""]
     for s in sections:
@@ -237,6 +247,9 @@ def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Seq
              "Seeds diverged: " + html.escape(DIVERGED_RULE) + ". Seeds collapsed: " + html.escape(COLLAPSED_RULE)
              + ". Paper column: ≈ approximate (figure or text), "
              "= exact (table).</p>", lead_html(list(leads), out, _html_table)]
+    note = missing_shipped_note([s.exp.name for s in sections], source)
+    if note:
+        parts.append(f"<p class='claim'>{html.escape(note)}</p>")
     if leads:
         parts.append(f"<p class='claim'><b>Below: {html.escape(LIVE_NOTE)}</b></p>")
     shown = set()

@@ -1,4 +1,4 @@
-"""The paper's own numbers, transcribed in ``assets/paper/*.json``, and how the report quotes them."""
+"""The paper's own numbers, transcribed in ``train/data/paper/*.json``, and how the report quotes them."""
 
 from __future__ import annotations
 
@@ -6,12 +6,12 @@ import json
 from pathlib import Path
 from typing import Any
 
-PAPER_DIR = Path(__file__).resolve().parents[3] / "assets" / "paper"
-"""Where the paper's transcribed numbers live (``assets/paper`` of the source tree)."""
+PAPER_DIR = Path(__file__).resolve().parents[2] / "data" / "paper"
+"""Where the paper's transcribed numbers live (``train/data/paper`` of the source tree)."""
 
 
 def load_paper(paper_dir: Path = PAPER_DIR) -> dict[str, dict[str, list[dict[str, Any]]]]:
-    """The paper's numbers by experiment, {'values', 'claims', 'sources'}, from ``assets/paper/*.json``."""
+    """The paper's numbers by experiment, {'values', 'claims', 'sources'}, from ``train/data/paper/*.json``."""
     out: dict[str, dict[str, list[dict[str, Any]]]] = {}
     if not paper_dir.is_dir():
         return out
