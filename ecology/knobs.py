@@ -52,13 +52,17 @@ class Schedule:
             raise ValueError("a schedule needs as many breakpoint times as values, and at least one")
         for i, v in enumerate(self.values):
             _check_unit(f"shaping schedule value #{i}", v)
+        bad = [t for t in self.times if not math.isfinite(t)]
+        if bad:
+            raise ValueError(f"shaping schedule {self.text or str(self.times)!r} has the breakpoint step {bad[0]}; "
+                             f"every step must be a finite number >= 0")
         if self.times[0] != 0 or any(b < a for a, b in zip(self.times, self.times[1:])):
             raise ValueError(f"schedule breakpoints must start at step 0 and never decrease, got {self.times}")
 
     @classmethod
     def constant(cls, value: float) -> Schedule:
         """A schedule that is ``value`` forever."""
-        value = _check_unit("shaping", value)
+        value = _check_unit("shaping", value) + 0.0  # + 0.0 turns -0.0 into 0.0 (shown as '0', not '-0')
         return cls((0.0,), (value,), text=f"{value:g}")
 
     @classmethod
@@ -103,6 +107,8 @@ def parse_schedule(spec: str | float | Schedule) -> Schedule:
     """Parse a shaping schedule from a number, a `Schedule`, or a short string (see `SCHEDULE_HELP`)."""
     if isinstance(spec, Schedule):
         return spec
+    if spec is None:
+        raise TypeError(f"shaping must be {SCHEDULE_HELP}; got None (pass 0 for no shaping)")
     if not isinstance(spec, str):
         return Schedule.constant(spec)
     text = spec.strip()

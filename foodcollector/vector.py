@@ -52,6 +52,7 @@ def _worker(conn, num_envs: int, kwargs: dict) -> None:
     commands = {
         "reset": lambda arg: env.reset(seed=arg[0], options=arg[1]),
         "step": env.step,
+        "render": lambda _: env.render(),
         "get_state": lambda _: {"autoreset": np.asarray(env._autoreset_envs, dtype=bool).copy(),
                                 "envs": [e.unwrapped.get_state() for e in env.envs]},
         "set_state": lambda state: _set_chunk_state(env, state),
@@ -110,6 +111,7 @@ class FoodCollectorVectorEnv(VectorEnv):
         _check_count("workers", workers)
         probe = gym.make(ENV_ID, **kwargs)
         self.single_observation_space, self.single_action_space = probe.observation_space, probe.action_space
+        self.render_mode = probe.render_mode
         probe.close()
         self.num_envs = int(num_envs)
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, self.num_envs)
@@ -158,7 +160,9 @@ class FoodCollectorVectorEnv(VectorEnv):
         return [answer for _, answer in answers]
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
-        """Reset every world (world i seeded with ``seed + i``). Returns (obs, info)."""
+        """Reset every world (world i seeded with ``seed + i``), or those ``options["reset_mask"]`` selects.
+        Returns (obs, info).
+        """
         if seed is None:
             seeds = [None] * self.num_envs
         elif isinstance(seed, (int, np.integer)):
@@ -167,8 +171,13 @@ class FoodCollectorVectorEnv(VectorEnv):
             seeds = list(seed)
             if len(seeds) != self.num_envs:
                 raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} worlds")
-        chunks = [(seeds[a:b], options) for a, b in zip(self._starts[:-1], self._starts[1:])]
-        parts = self._ask("reset", chunks)
+        mask = (options or {}).get("reset_mask")
+        if mask is not None and np.shape(mask) != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] must have shape ({self.num_envs},), got {np.shape(mask)}")
+        spans = list(zip(self._starts[:-1], self._starts[1:]))
+        chunk_options = [options if mask is None else {**options, "reset_mask": np.asarray(mask)[a:b]}
+                         for a, b in spans]
+        parts = self._ask("reset", [(seeds[a:b], o) for (a, b), o in zip(spans, chunk_options)])
         return np.concatenate([obs for obs, _ in parts]), merge_infos([i for _, i in parts], self.sizes)
 
     def step(self, actions):
@@ -179,6 +188,13 @@ class FoodCollectorVectorEnv(VectorEnv):
         parts = self._ask("step", [actions[a:b] for a, b in zip(self._starts[:-1], self._starts[1:])])
         obs, rew, term, trunc = (np.concatenate([p[k] for p in parts]) for k in range(4))
         return obs, rew, term, trunc, merge_infos([p[4] for p in parts], self.sizes)
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """One RGB frame per world (``render_mode="rgb_array"``), in world order; None without a render mode."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
+            return None
+        return tuple(frame for part in self._ask("render", [None] * self.workers) for frame in part)
 
     def get_state(self) -> dict[str, Any]:
         """Every world's `get_state` and the autoreset flags, as one ``SyncVectorEnv`` over them would hold."""

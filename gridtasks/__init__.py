@@ -5,7 +5,7 @@ Importing the package registers ``gridtasks/Salad-v0``, ``gridtasks/Hunting-v0``
 """
 
 from gridtasks.codes import Code
-from gridtasks.env import GridTaskEnv, GridTaskVectorEnv
+from gridtasks.env import GridTaskEnv
 from gridtasks.factory import FactoryEnv
 from gridtasks.hunting import HuntingEnv
 from gridtasks.records import check_worlds
@@ -13,6 +13,7 @@ from gridtasks.registration import ENV_IDS, TASKS, register_all
 from gridtasks.salad import SaladEnv, WalledSaladEnv
 from gridtasks.scavenging import ScavengingEnv
 from gridtasks.validation import make_test_env, make_validation_envs, validation_layouts
+from gridtasks.vector import GridTaskVectorEnv
 
 register_all()
 

@@ -1,4 +1,4 @@
-"""Gymnasium front ends of the grid engine: one world (`GridTaskEnv`) and many (`GridTaskVectorEnv`).
+"""The Gymnasium front end of the grid engine for one world (`GridTaskEnv`; many: `gridtasks.vector`).
 
 Both hold the same rules record and call the same compiled kernels; the single environment is a batch
 of one. A task is a subclass of `GridTaskEnv` that names its parameter dataclass (`Config`), its
@@ -14,9 +14,6 @@ from typing import ClassVar
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from gymnasium.utils import seeding
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
 
 from ecology import Ecology, VisitGrid, check_action, check_render_mode, make_test_mdp_kwargs
 from gridtasks import engine
@@ -28,8 +25,6 @@ from gridtasks.batch import (  # noqa: F401 (check_* are re-exported for the tas
     check_positive_int,
     check_probability,
     check_threads,
-    reset_batch,
-    step_batch,
     world_key,
 )
 from gridtasks.codes import NAMES, Code
@@ -78,7 +73,12 @@ class GridTaskEnv(gym.Env):
     Every task takes the four ecology knobs (``dynamism``, ``shaping``, ``reset_free``, ``reward``),
     ``render_mode`` and its own parameters (the fields of its ``Config``), all as keyword arguments.
     ``reset(seed=s)`` starts a new life (lifetime clock at 0, a world stream seeded from ``s``);
-    ``reset()`` without a seed starts a new episode in the same life.
+    ``reset()`` without a seed starts a new episode in the same life. After an episode ends, ``step`` refuses
+    until ``reset``. ``info["agent_pos"]`` is an int64 array (x, y).
+
+    The ids are registered without ``max_episode_steps``: an episodic world truncates itself at ``horizon``
+    and a reset-free one never ends, so a wrapper that reads ``spec.max_episode_steps`` (``TimeAwareObservation``)
+    needs ``gymnasium.make(id, horizon=H, max_episode_steps=H)``.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 8}
@@ -103,6 +103,7 @@ class GridTaskEnv(gym.Env):
         self._state = np.zeros(1, dtype=engine.world_dtype(self.config.grid_size))
         self._buffers = StepBuffers(1, self.observation_space.shape[0])
         self._seeded = False
+        self._ended: str | None = None
         self._info_keys = [(f"pickup_{NAMES[c]}", int(c)) for c in self.counted]
 
     # ---------------------------------------------------------------- construction
@@ -188,10 +189,11 @@ class GridTaskEnv(gym.Env):
     @property
     def reward_bound(self) -> float:
         """The largest |reward| one step can give: completing the task (or reaching the best-paid stage) plus 100
-        for a subgoal, a lost-progress penalty or a predator on the same step; 200 unless a task's ladder pays more.
+        for a subgoal or a lost-progress penalty, or plus a predator's cost where that is larger, on the same step;
+        200 unless a task's ladder or its predators cost more.
         """
         r = self.rules[0]
-        return float(max(r["completion_reward"], r["stage_reward"].max())) + 100.0
+        return float(max(r["completion_reward"], r["stage_reward"].max())) + max(100.0, float(r["predator_penalty"]))
 
     @property
     def visit_grid(self) -> VisitGrid:
@@ -216,18 +218,28 @@ class GridTaskEnv(gym.Env):
             self._state["replay_layout"][0] = False
             self._seeded = True
         engine.reset_worlds(self._state, self.rules, np.ones(1, dtype=np.bool_), self._buffers.obs)
+        self._ended = None
         return self._buffers.obs[0].copy(), self._info(False, False)
 
     def step(self, action):
-        """Advance the world one step. Returns (obs, reward, terminated, truncated, info)."""
+        """Advance the world one step. Returns (obs, reward, terminated, truncated, info).
+
+        After an episode ends (terminated or truncated) the next call must be ``reset()``, as in the food
+        collector; a reset-free world never ends.
+        """
         if not self._seeded:
             raise RuntimeError("call reset() before step()")
+        if self._ended:
+            raise RuntimeError(f"the episode ended ({self._ended}); call reset()")
         b = self._buffers
         b.actions[0] = check_action(action, engine.NUM_ACTIONS, engine.ACTION_NAMES)
         engine.step_worlds(self._state, self.rules, b.actions, b.obs, b.rewards, b.terminated, b.truncated,
                            b.solved, b.caught, False)
+        terminated, truncated = bool(b.terminated[0]), bool(b.truncated[0])
+        if terminated or truncated:
+            self._ended = "terminated" if terminated else "truncated"
         info = self._info(bool(b.solved[0]), bool(b.caught[0]))
-        return b.obs[0].copy(), float(b.rewards[0]), bool(b.terminated[0]), bool(b.truncated[0]), info
+        return b.obs[0].copy(), float(b.rewards[0]), terminated, truncated, info
 
     def _info(self, solved: bool, caught: bool) -> dict:
         w = self._state[0]
@@ -235,7 +247,7 @@ class GridTaskEnv(gym.Env):
         info = {
             "solved": solved,
             "caught": caught,
-            "agent_pos": (int(agent[0]), int(agent[1])),
+            "agent_pos": agent.astype(np.int64),  # an array (x, y), so that every vector mode stacks it
             "lifetime_step": int(w["lifetime_step"]),
             "completions": int(w["completions"]),
         }
@@ -256,130 +268,3 @@ class GridTaskEnv(gym.Env):
         from gridtasks.render import render_world
 
         return render_world(self._state[0], self.rules[0], self.channels)
-
-
-class GridTaskVectorEnv(VectorEnv):
-    """Many worlds of one grid task stepped by one compiled call (Gymnasium next-step autoreset).
-
-    ``reset(seed=s)`` seeds world i with ``s + i`` (or with ``seed[i]`` given a list); world i then
-    follows exactly the trajectory of ``gymnasium.make(id)`` reset with that seed under the same actions.
-
-    ``threads`` (default 1) shares the worlds of every step and reset out among that many of numba's
-    threads (at most ``NUMBA_NUM_THREADS``, by default the number of CPUs). Each world draws only from its
-    own random stream, so every number is the same as with one thread; the threaded kernels compile on
-    first use. Threads pay only with cores to spare: on a machine whose cores other work keeps busy, waiting
-    threads slow each call down (``benchmarks/bench_gridtasks.py --threads N`` measures the ratio; with
-    numba's OpenMP layer, ``OMP_WAIT_POLICY=passive`` limits the loss). Trainers that step in a hot loop can
-    call `step_arrays`, which skips the info dict.
-    """
-
-    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 8,
-                                "autoreset_mode": AutoresetMode.NEXT_STEP}
-
-    def __init__(self, env_class: type[GridTaskEnv], num_envs: int, copy: bool = True, threads: int = 1,
-                 **kwargs):
-        check_positive_int("num_envs", num_envs)
-        self.threads = check_threads(threads)
-        self.template = env_class(**kwargs)
-        self.num_envs = int(num_envs)
-        self.copy = copy
-        self.render_mode = self.template.render_mode
-        self.single_observation_space = self.template.observation_space
-        self.single_action_space = self.template.action_space
-        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
-        self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self.rules = self.template.rules
-        self._state = np.zeros(self.num_envs, dtype=engine.world_dtype(self.template.config.grid_size))
-        self._buffers = StepBuffers(self.num_envs, self.single_observation_space.shape[0])
-        self._seeded = False
-
-    @property
-    def ecology(self) -> Ecology:
-        """The resolved ecology knobs shared by every world."""
-        return self.template.ecology
-
-    @property
-    def worlds(self) -> np.ndarray:
-        """The live state records of all worlds."""
-        return self._state
-
-    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
-        """Reset every world (a new life for each when seeded). Returns (obs, info)."""
-        if seed is None and self._seeded:
-            keys = None
-        elif seed is None:
-            self._np_random, _ = seeding.np_random(None)
-            keys = [world_key(self._np_random) for _ in range(self.num_envs)]
-        else:
-            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, (int, np.integer)) else seed
-            if len(seeds) != self.num_envs:
-                raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} worlds")
-            keys = [world_key(seeding.np_random(int(s))[0]) for s in seeds]
-            self._np_random, _ = seeding.np_random(int(seeds[0]))
-        if keys is not None:
-            self._state["rng"] = np.array(keys, dtype=np.uint64)
-            self._state["lifetime_step"] = 0
-            self._state["replay_layout"] = False
-            self._seeded = True
-        reset_batch(self._state, self.rules, np.ones(self.num_envs, dtype=np.bool_), self._buffers.obs,
-                    self.threads)
-        return self._out(self._buffers.obs), self._info()
-
-    def step(self, actions):
-        """Step all worlds. Returns batched (obs, rewards, terminated, truncated, info)."""
-        b = self._step_all(actions, "step")
-        return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
-                self._info())
-
-    def step_arrays(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """`step` without the info dict, for a trainer's hot loop: the same worlds, the same numbers.
-
-        ``actions`` is an integer array of shape (num_envs,). Returns (obs, reward, terminated, truncated,
-        agent_pos): float32 (num_envs, obs_dim), float64, bool, bool (num_envs,) and int64 (num_envs, 2)
-        positions (x, y), as ``info["agent_pos"]``. With ``copy=False`` the first four are the env's own
-        buffers, overwritten by the next call. ``info["solved"]`` and ``info["caught"]`` of the same step are
-        `last_solved` and `last_caught`. Call it on the env itself (``vec.unwrapped``), not a wrapper.
-        """
-        b = self._step_all(actions, "step_arrays")
-        return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
-                self._state["agent"].copy())
-
-    def _step_all(self, actions, caller: str) -> StepBuffers:
-        """Check ``actions``, step every world (next-step autoreset) and return the filled buffers."""
-        if not self._seeded:
-            raise RuntimeError(f"call reset() before {caller}()")
-        b = self._buffers
-        b.actions[:] = check_actions(actions, self.num_envs)
-        step_batch(self._state, self.rules, b, True, self.threads)
-        return b
-
-    @property
-    def last_solved(self) -> np.ndarray:
-        """Which worlds completed their task on the last step (``info["solved"]``)."""
-        return self._buffers.solved.copy()
-
-    @property
-    def last_caught(self) -> np.ndarray:
-        """Which worlds were caught by a predator on the last step (``info["caught"]``)."""
-        return self._buffers.caught.copy()
-
-    def _out(self, array: np.ndarray) -> np.ndarray:
-        return array.copy() if self.copy else array
-
-    def _info(self) -> dict:
-        s = self._state
-        products = list(self.template.products)
-        return {"solved": self.last_solved, "caught": self.last_caught, "agent_pos": s["agent"].copy(),
-                "lifetime_step": s["lifetime_step"].copy(), "completions": s["completions"].copy(),
-                "made": s["made"][:, products].sum(1),  # every product: what the trainer logs
-                **{f"made_{NAMES[code]}": s["made"][:, code].copy() for code in products}}  # as the single env
-
-    def render(self):
-        """A tuple with one RGB frame per world."""
-        from gridtasks.render import render_world
-
-        if self.render_mode is None:
-            return None
-        if not self._seeded:
-            raise RuntimeError("call reset() before render(): no world has been laid out yet")
-        return tuple(render_world(w, self.rules[0], self.template.channels) for w in self._state)

@@ -20,8 +20,8 @@ import numpy as np
 from tqdm import tqdm
 
 from gridtasks.codes import GROUP, Code
-from gridtasks.env import GridTaskVectorEnv
 from gridtasks.registration import TASKS
+from gridtasks.vector import GridTaskVectorEnv
 
 SETTINGS: dict[str, tuple[str, dict]] = {
     "salad p=0": ("salad", {"dynamism": 0.0}),

@@ -6,11 +6,12 @@ from functools import partial
 
 import gymnasium as gym
 
-from gridtasks.env import GridTaskEnv, GridTaskVectorEnv
+from gridtasks.env import GridTaskEnv
 from gridtasks.factory import FactoryEnv
 from gridtasks.hunting import HuntingEnv
 from gridtasks.salad import SaladEnv, WalledSaladEnv
 from gridtasks.scavenging import ScavengingEnv
+from gridtasks.vector import GridTaskVectorEnv
 
 NAMESPACE = "gridtasks"
 TABLE: tuple[tuple[str, str, type[GridTaskEnv]], ...] = (
@@ -27,6 +28,18 @@ ENV_IDS: dict[str, str] = {name: f"{NAMESPACE}/{env_id}" for name, env_id, _ in 
 """Task name -> Gymnasium id."""
 
 
+VECTOR_PREFIX = "vector_"
+"""``gridtasks.registration:vector_<task>`` (dashes as underscores) is a task's vector entry point."""
+
+
+def __getattr__(name: str):
+    """The vector entry points, by name, so that the registry holds strings (``EnvSpec.to_json`` works)."""
+    task = name.removeprefix(VECTOR_PREFIX).replace("_", "-")
+    if name.startswith(VECTOR_PREFIX) and task in TASKS:
+        return partial(GridTaskVectorEnv, TASKS[task])
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def register_all() -> None:
     """Register every grid task (single and vector entry points); safe to call twice."""
     for name, env_class in TASKS.items():
@@ -35,7 +48,7 @@ def register_all() -> None:
             continue
         gym.register(
             id=env_id,
-            entry_point=env_class,
-            vector_entry_point=partial(GridTaskVectorEnv, env_class),
+            entry_point=f"{env_class.__module__}:{env_class.__name__}",
+            vector_entry_point=f"{__name__}:{VECTOR_PREFIX}{name.replace('-', '_')}",
             disable_env_checker=False,
         )

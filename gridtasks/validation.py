@@ -33,7 +33,7 @@ def make_validation_envs(task: str, n: int = NUM_VALIDATION_LAYOUTS, copies: int
     evaluated on the same layouts in one batch; ``threads`` as `GridTaskVectorEnv`'s. Returns (vector env,
     first observations).
     """
-    from gridtasks.env import GridTaskVectorEnv
+    from gridtasks.vector import GridTaskVectorEnv
 
     vec = GridTaskVectorEnv(_env_class(task), num_envs=n * copies, threads=threads,
                             **test_mdp_kwargs(task, **train_kwargs))

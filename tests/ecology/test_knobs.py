@@ -75,3 +75,12 @@ def test_validation_seeds_are_fixed_and_far_from_training_seeds():
     assert len(seeds) == 100 == len(set(seeds))
     assert seeds == validation_seeds()
     assert min(seeds) > 10**6
+
+
+def test_schedules_refuse_endless_steps_and_say_what_none_should_be():
+    """'linear:1:0:inf' read as a constant 1, None named only numbers, and -0.0 printed as '-0'."""
+    with pytest.raises(ValueError, match="finite"):
+        parse_schedule("linear:1:0:inf")
+    with pytest.raises(TypeError, match="linear:START:END:STEPS.*pass 0 for no shaping"):
+        parse_schedule(None)
+    assert str(parse_schedule(-0.0)) == "0"

@@ -76,3 +76,26 @@ def test_merge_infos_masks_a_key_a_chunk_lacks():
     assert_same(merged["_a"], np.array([True, True, False]), "_a")
     assert_same(merged["b"], np.array([0.0, 0.0, 0.5]), "b")
     assert_same(merged["_b"], np.array([False, False, True]), "_b")
+
+
+def test_a_reset_mask_and_render_work_across_workers_as_in_one_process():
+    """A mask was sent whole to each worker's chunk (an error), and workers=2 dropped the render mode."""
+    mask = np.array([True, False, False, True])
+    outs = []
+    for workers in (1, 2):
+        vec = foodcollector.make_vector_env(4, workers, render_mode="rgb_array", horizon=50)
+        vec.reset(seed=3)
+        for _ in range(3):
+            vec.step(np.zeros(4, dtype=np.int64))
+        outs.append(vec.reset(options={"reset_mask": mask})[0])
+        frames = vec.render()
+        assert len(frames) == 4 and frames[0].shape == (512, 512, 3)
+        vec.close()
+    np.testing.assert_array_equal(*outs)
+
+
+def test_make_vec_takes_the_worker_count():
+    vec = gymnasium.make_vec(foodcollector.ENV_ID, num_envs=3, vectorization_mode="vector_entry_point")
+    assert vec.reset(seed=0)[0].shape == (3, 53)
+    with gymnasium.make_vec(foodcollector.ENV_ID, num_envs=2, workers=2) as vec:
+        assert type(vec).__name__ == "FoodCollectorVectorEnv"

@@ -211,3 +211,29 @@ def test_scavenging_predator_settings_are_checked(kwargs, message):
     """A fractional count and a NaN or infinite penalty used to be accepted, a string raised a bare TypeError."""
     with pytest.raises(ValueError, match=message):
         gym.make("gridtasks/Scavenging-v0", **kwargs)
+
+
+@pytest.mark.parametrize("knobs, ended", [({"horizon": 3}, "truncated"), ({"predator_count": 0}, "terminated")])
+def test_stepping_an_ended_episode_is_refused_until_reset(knobs, ended):
+    """The single env used to step on after its episode ended (the food collector refuses, and so does this)."""
+    env = gym.make("gridtasks/Scavenging-v0", **knobs)
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for _ in range(20_000):  # episodes until one ends the way asked
+        _, _, terminated, truncated, _ = env.step(int(rng.integers(7)))
+        if (terminated or truncated) and ("terminated" if terminated else "truncated") == ended:
+            break
+        if terminated or truncated:
+            env.reset()
+    else:
+        pytest.fail(f"no episode {ended} in 20 000 random steps")
+    with pytest.raises(RuntimeError, match=f"the episode ended \\({ended}\\); call reset\\(\\)"):
+        env.step(0)
+    env.reset()
+    env.step(0)
+
+
+def test_the_reward_bound_covers_a_costlier_predator():
+    """reward_bound stayed 200 with predator_penalty=1000, which the divergence rule scales by."""
+    assert gym.make("gridtasks/Scavenging-v0").unwrapped.reward_bound == 200.0
+    assert gym.make("gridtasks/Scavenging-v0", predator_penalty=1000.0).unwrapped.reward_bound == 1100.0

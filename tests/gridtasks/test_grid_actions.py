@@ -49,7 +49,7 @@ def test_moves_one_cell_and_walks_over_objects(action, expected):
     _, reward, terminated, truncated, info = env.step(action)
     # objects stay where they are: the agent stands on top of them
     assert_map(world, MOVE_MAP.replace("@", "."), agent=expected)
-    assert info["agent_pos"] == expected
+    assert tuple(info["agent_pos"]) == expected
     assert (reward, terminated, truncated) == (0.0, False, False)
 
 

@@ -223,7 +223,7 @@ def test_predators_step_greedily_toward_the_agents_previous_cell(predator, agent
     _, reward, _, _, info = env.step(action)
     assert tuple(world["pred"][0]) == expected
     assert world["pred_age"][0] == 1
-    assert info["caught"] == (expected == info["agent_pos"])
+    assert info["caught"] == (expected == tuple(info["agent_pos"]))
 
 
 @pytest.mark.parametrize("reward_mode", ["sparse", "subgoal", "one_time", "distance"])
@@ -281,7 +281,7 @@ def test_predators_reappear_after_their_lifespan():
 
 
 def test_reborn_predators_appear_at_random_cells_never_the_agents():
-    env = scavenging(predator_lifespan=1)
+    env = scavenging(predator_lifespan=1, horizon=400)  # one episode of 300 steps
     world = world_from_map(env, EMPTY7, agent=(3, 3), predators=[(1, 1)])
     seen = set()
     for _ in range(300):

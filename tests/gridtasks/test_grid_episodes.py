@@ -80,7 +80,7 @@ def test_info_reports_cell_clock_and_counts():
     env = make(gridtasks.SaladEnv, 7, regrow_when_empty=False)
     world_from_map(env, SALAD_ON, agent=(3, 4))
     _, _, _, _, info = env.step(WEST)
-    assert info["agent_pos"] == (2, 4)
+    assert tuple(info["agent_pos"]) == (2, 4) and info["agent_pos"].dtype == np.int64  # stacks in every vector mode
     assert info["lifetime_step"] == 1
     assert {"solved", "caught", "completions", "pickup_lettuce", "pickup_carrot", "pickup_salad",
             "made_salad"} <= set(info)

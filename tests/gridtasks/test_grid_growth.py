@@ -154,7 +154,7 @@ def test_without_dynamism_nothing_withers(cls):
 
 
 def test_static_salad_keeps_every_ingredient_forever():
-    env = salad(dynamism=0.0)
+    env = salad(dynamism=0.0, horizon=1000)  # one episode of 500 steps
     world = world_from_map(env, BOTH, ages={(2, 2): 10**6})
     before = world["grid"].copy()
     for _ in range(500):
@@ -215,7 +215,7 @@ def test_no_regrowth_while_one_of_the_kind_is_left():
 
 
 def test_without_regrowth_an_eaten_kind_stays_gone():
-    env = salad(dynamism=0.0, regrow_when_empty=False)
+    env = salad(dynamism=0.0, regrow_when_empty=False, horizon=200)
     world = world_from_map(env, BARE, agent=(2, 2))
     env.step(PICK_UP)
     for _ in range(100):

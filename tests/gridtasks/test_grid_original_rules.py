@@ -227,7 +227,7 @@ def layouts_of_episodes(env, episodes: int) -> list[bytes]:
 
 
 def test_replay_unsolved_repeats_a_layout_within_a_collection_and_draws_anew_after_it():
-    from gridtasks.env import GridTaskVectorEnv
+    from gridtasks.vector import GridTaskVectorEnv
 
     # horizon 10, collections of 35 steps: episodes end at world steps 10, 20, 30 (unsolved, replayed),
     # then the collection boundary at 35 cuts the fourth and the fifth starts from a fresh layout
@@ -239,7 +239,7 @@ def test_replay_unsolved_repeats_a_layout_within_a_collection_and_draws_anew_aft
 
 
 def test_without_replay_every_episode_draws_a_fresh_layout():
-    from gridtasks.env import GridTaskVectorEnv
+    from gridtasks.vector import GridTaskVectorEnv
 
     env = GridTaskVectorEnv(gridtasks.SaladEnv, 1, horizon=10)
     env.reset(seed=3)

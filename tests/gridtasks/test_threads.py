@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import gridtasks
-from gridtasks.env import GridTaskVectorEnv
+from gridtasks.vector import GridTaskVectorEnv
 
 IDS = sorted(gridtasks.ENV_IDS.values())
 KNOBS = {

@@ -102,3 +102,57 @@ def test_validation_copies_repeat_the_same_layouts():
     vec, obs = gridtasks.make_validation_envs("hunting", n=10, copies=3)
     np.testing.assert_array_equal(obs[:10], obs[10:20])
     np.testing.assert_array_equal(vec.worlds["grid"][:10], vec.worlds["grid"][20:])
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_every_vector_mode_gives_the_single_envs_info_keys_stacked(env_id):
+    """The engine's info had no pick-up counts, and "sync" stacked the single env's tuple positions as objects."""
+    single = gym.make(env_id).reset(seed=0)[1]
+    _, batched = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point").reset(seed=0)
+    _, synced = gym.make_vec(env_id, num_envs=3, vectorization_mode="sync").reset(seed=0)
+    assert set(batched) == set(single) | {"made"}  # plus the total of every product, as the trainer logs
+    assert set(single) == {key for key in synced if not key.startswith("_")}
+    for info in (batched, synced):
+        assert info["agent_pos"].shape == (3, 2) and info["agent_pos"].dtype == np.int64
+    np.testing.assert_array_equal(batched["agent_pos"], synced["agent_pos"])
+
+
+def test_a_reset_mask_resets_only_the_worlds_it_selects_as_sync_does():
+    """``options["reset_mask"]`` (Gymnasium 1.x) used to be ignored: every world was reset."""
+    mask = np.array([True, False, True, False])
+    outs = []
+    for mode in ("vector_entry_point", "sync"):
+        vec = gym.make_vec("gridtasks/Salad-v0", num_envs=4, vectorization_mode=mode, dynamism=0.2)
+        before = vec.reset(seed=7)[0]
+        for _ in range(3):
+            stepped = vec.step(np.array([1, 2, 3, 1]))[0]
+        after = vec.reset(options={"reset_mask": mask})[0]
+        np.testing.assert_array_equal(after[~mask], stepped[~mask])
+        outs.append(after)
+        if mode == "vector_entry_point":
+            assert list(vec.unwrapped.worlds["episode_step"]) == [0, 3, 0, 3]
+            np.testing.assert_array_equal(vec.reset(seed=7, options={"reset_mask": mask})[0][mask], before[mask])
+    np.testing.assert_array_equal(*outs)
+
+
+def test_bad_reset_masks_and_seeds_are_one_line_errors():
+    vec = gym.make_vec("gridtasks/Hunting-v0", num_envs=3, vectorization_mode="vector_entry_point")
+    with pytest.raises(RuntimeError, match="first reset"):
+        vec.reset(seed=0, options={"reset_mask": np.array([True, False, False])})
+    vec.reset(seed=[None, 2, 3])  # None: that world draws fresh entropy, as SyncVectorEnv allows
+    with pytest.raises(ValueError, match=r"boolean array of shape \(3,\)"):
+        vec.reset(options={"reset_mask": np.array([1, 0, 0])})
+    for bad in (3.0, "12", [1.9, 2, 3], True):
+        with pytest.raises(TypeError, match="seed must be an int, or a list of 3 ints or None"):
+            vec.reset(seed=bad)
+    with pytest.raises(ValueError, match="copy must be True or False"):
+        gym.make_vec("gridtasks/Hunting-v0", num_envs=2, vectorization_mode="vector_entry_point", copy="no")
+
+
+@pytest.mark.parametrize("env_id", IDS)
+def test_every_spec_serialises(env_id):
+    """The registry held classes and partials, so ``EnvSpec.to_json`` refused every grid id."""
+    spec = gym.spec(env_id)
+    assert gym.envs.registration.EnvSpec.from_json(spec.to_json()) == spec
+    vec = gym.make_vec(env_id, num_envs=2)  # the string vector entry point loads
+    assert type(vec.unwrapped).__name__ == "GridTaskVectorEnv"

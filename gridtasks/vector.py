@@ -1,0 +1,181 @@
+"""Many worlds of one grid task stepped by one compiled call: `GridTaskVectorEnv`."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ecology import Ecology
+from gridtasks import engine
+from gridtasks.batch import (
+    StepBuffers,
+    check_actions,
+    check_flag,
+    check_positive_int,
+    check_threads,
+    reset_batch,
+    step_batch,
+    world_key,
+)
+from gridtasks.codes import NAMES
+from gridtasks.env import GridTaskEnv
+
+
+class GridTaskVectorEnv(VectorEnv):
+    """Many worlds of one grid task stepped by one compiled call (Gymnasium next-step autoreset).
+
+    ``reset(seed=s)`` seeds world i with ``s + i`` (or with ``seed[i]`` given a list); world i then
+    follows exactly the trajectory of ``gymnasium.make(id)`` reset with that seed under the same actions.
+
+    ``threads`` (default 1) shares the worlds of every step and reset out among that many of numba's
+    threads (at most ``NUMBA_NUM_THREADS``, by default the number of CPUs). Each world draws only from its
+    own random stream, so every number is the same as with one thread; the threaded kernels compile on
+    first use. Threads pay only with cores to spare: on a machine whose cores other work keeps busy, waiting
+    threads slow each call down (``benchmarks/bench_gridtasks.py --threads N`` measures the ratio; with
+    numba's OpenMP layer, ``OMP_WAIT_POLICY=passive`` limits the loss). Trainers that step in a hot loop can
+    call `step_arrays`, which skips the info dict.
+    """
+
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 8,
+                                "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, env_class: type[GridTaskEnv], num_envs: int, copy: bool = True, threads: int = 1,
+                 **kwargs):
+        check_positive_int("num_envs", num_envs)
+        check_flag("copy", copy)
+        self.threads = check_threads(threads)
+        self.template = env_class(**kwargs)
+        self.num_envs = int(num_envs)
+        self.copy = copy
+        self.render_mode = self.template.render_mode
+        self.single_observation_space = self.template.observation_space
+        self.single_action_space = self.template.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.rules = self.template.rules
+        self._state = np.zeros(self.num_envs, dtype=engine.world_dtype(self.template.config.grid_size))
+        self._buffers = StepBuffers(self.num_envs, self.single_observation_space.shape[0])
+        self._seeded = False
+
+    @property
+    def ecology(self) -> Ecology:
+        """The resolved ecology knobs shared by every world."""
+        return self.template.ecology
+
+    @property
+    def worlds(self) -> np.ndarray:
+        """The live state records of all worlds."""
+        return self._state
+
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Reset every world, or those ``options["reset_mask"]`` selects (Gymnasium's boolean mask of shape
+        (num_envs,)); a seed starts a new life in each world it resets. Returns (obs, info) of every world.
+        """
+        mask = self._reset_mask(options)
+        keys = self._world_keys(seed)
+        if keys is not None:
+            self._state["rng"][mask] = keys[mask]
+            self._state["lifetime_step"][mask] = 0
+            self._state["replay_layout"][mask] = False
+            self._seeded = True
+        reset_batch(self._state, self.rules, mask, self._buffers.obs, self.threads)
+        return self._out(self._buffers.obs), self._info()
+
+    def _reset_mask(self, options: dict | None) -> np.ndarray:
+        """The worlds a reset resets: all, or ``options["reset_mask"]`` (other options are ignored)."""
+        mask = (options or {}).get("reset_mask")
+        if mask is None:
+            return np.ones(self.num_envs, dtype=np.bool_)
+        mask = np.asarray(mask)
+        if mask.dtype != np.bool_ or mask.shape != (self.num_envs,):
+            raise ValueError(f"options['reset_mask'] must be a boolean array of shape ({self.num_envs},), got "
+                             f"dtype {mask.dtype} and shape {mask.shape}")
+        if not self._seeded and not mask.all():
+            raise RuntimeError("the first reset() lays out every world: call it without reset_mask")
+        return mask.copy()
+
+    def _world_keys(self, seed) -> np.ndarray | None:
+        """Each world's new random-stream key for ``seed`` (an int: world i takes seed + i; or one int or None
+        per world), or None where the worlds keep their streams (no seed, after the first reset).
+        """
+        if seed is None and self._seeded:
+            return None
+        if seed is None or (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)):
+            seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
+        elif isinstance(seed, (list, tuple, np.ndarray)) and all(
+                s is None or (isinstance(s, (int, np.integer)) and not isinstance(s, bool)) for s in seed):
+            seeds = [None if s is None else int(s) for s in seed]
+        else:
+            raise TypeError(f"reset's seed must be an int, or a list of {self.num_envs} ints or None (one per "
+                            f"world), got {seed!r}")
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} worlds")
+        first = next((s for s in seeds if s is not None), None)
+        self._np_random, _ = seeding.np_random(first)
+        return np.array([world_key(seeding.np_random(s)[0]) for s in seeds], dtype=np.uint64)
+
+    def step(self, actions):
+        """Step all worlds. Returns batched (obs, rewards, terminated, truncated, info)."""
+        b = self._step_all(actions, "step")
+        return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
+                self._info())
+
+    def step_arrays(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """`step` without the info dict, for a trainer's hot loop: the same worlds, the same numbers.
+
+        ``actions`` is an integer array of shape (num_envs,). Returns (obs, reward, terminated, truncated,
+        agent_pos): float32 (num_envs, obs_dim), float64, bool, bool (num_envs,) and int64 (num_envs, 2)
+        positions (x, y), as ``info["agent_pos"]``. With ``copy=False`` the first four are the env's own
+        buffers, overwritten by the next call. ``info["solved"]`` and ``info["caught"]`` of the same step are
+        `last_solved` and `last_caught`. Call it on the env itself (``vec.unwrapped``), not a wrapper.
+        """
+        b = self._step_all(actions, "step_arrays")
+        return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
+                self._state["agent"].copy())
+
+    def _step_all(self, actions, caller: str) -> StepBuffers:
+        """Check ``actions``, step every world (next-step autoreset) and return the filled buffers."""
+        if not self._seeded:
+            raise RuntimeError(f"call reset() before {caller}()")
+        b = self._buffers
+        b.actions[:] = check_actions(actions, self.num_envs)
+        step_batch(self._state, self.rules, b, True, self.threads)
+        return b
+
+    @property
+    def last_solved(self) -> np.ndarray:
+        """Which worlds completed their task on the last step (``info["solved"]``)."""
+        return self._buffers.solved.copy()
+
+    @property
+    def last_caught(self) -> np.ndarray:
+        """Which worlds were caught by a predator on the last step (``info["caught"]``)."""
+        return self._buffers.caught.copy()
+
+    def _out(self, array: np.ndarray) -> np.ndarray:
+        return array.copy() if self.copy else array
+
+    def _info(self) -> dict:
+        s = self._state
+        products = list(self.template.products)
+        return {"solved": self.last_solved, "caught": self.last_caught, "agent_pos": s["agent"].astype(np.int64),
+                "lifetime_step": s["lifetime_step"].copy(), "completions": s["completions"].copy(),
+                **{f"pickup_{NAMES[code]}": s["pickups"][:, code].copy() for code in self.template.counted},
+                **{f"made_{NAMES[code]}": s["made"][:, code].copy() for code in products},
+                "made": s["made"][:, products].sum(1)}  # beyond the single env's keys: every product, as logged
+
+    def render(self):
+        """A tuple with one RGB frame per world."""
+        from gridtasks.render import render_world
+
+        if self.render_mode is None:
+            gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
+            return None
+        if not self._seeded:
+            raise RuntimeError("call reset() before render(): no world has been laid out yet")
+        return tuple(render_world(w, self.rules[0], self.template.channels) for w in self._state)
