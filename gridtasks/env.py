@@ -67,6 +67,18 @@ class SpawnRules(EpisodeRules):
     the last lettuce grows a new one at once and hunting keeps 2 axes on the grid while one is carried."""
 
 
+def can_render(render_mode: str | None, seeded: bool) -> bool:
+    """Whether an env can draw a frame: False, with Gymnasium's warning, without a render mode; an error before
+    its first reset.
+    """
+    if render_mode is None:
+        gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
+        return False
+    if not seeded:
+        raise RuntimeError("call reset() before render(): no world has been laid out yet")
+    return True
+
+
 class GridTaskEnv(gym.Env):
     """Base class of the grid tasks (see each task's docstring for its rules).
 
@@ -260,11 +272,8 @@ class GridTaskEnv(gym.Env):
 
     def render(self):
         """An RGB frame of the world (``render_mode='rgb_array'``), or None without a render mode."""
-        if self.render_mode is None:
-            gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
+        if not can_render(self.render_mode, self._seeded):
             return None
-        if not self._seeded:
-            raise RuntimeError("call reset() before render(): no world has been laid out yet")
         from gridtasks.render import render_world
 
         return render_world(self._state[0], self.rules[0], self.channels)

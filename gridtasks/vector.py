@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-import gymnasium as gym
 import numpy as np
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
@@ -23,7 +22,7 @@ from gridtasks.batch import (
     world_key,
 )
 from gridtasks.codes import NAMES
-from gridtasks.env import GridTaskEnv
+from gridtasks.env import GridTaskEnv, can_render
 
 
 class GridTaskVectorEnv(VectorEnv):
@@ -170,12 +169,9 @@ class GridTaskVectorEnv(VectorEnv):
                 "made": s["made"][:, products].sum(1)}  # beyond the single env's keys: every product, as logged
 
     def render(self):
-        """A tuple with one RGB frame per world."""
+        """A tuple with one RGB frame per world, or None without a render mode."""
         from gridtasks.render import render_world
 
-        if self.render_mode is None:
-            gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
+        if not can_render(self.render_mode, self._seeded):
             return None
-        if not self._seeded:
-            raise RuntimeError("call reset() before render(): no world has been laid out yet")
         return tuple(render_world(w, self.rules[0], self.template.channels) for w in self._state)
