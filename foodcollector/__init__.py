@@ -7,8 +7,7 @@ Importing the package registers ``foodcollector/FoodCollector-v0``::
                          reset_free=True, render_mode="rgb_array")
 
 See `foodcollector.env.FoodCollectorEnv` for the full specification, and `foodcollector.make_vector_env`
-(also ``gymnasium.make_vec(ENV_ID, num_envs=N, workers=W)``) for many worlds stepped in parallel worker
-processes.
+for many worlds stepped in parallel worker processes (``workers=N``).
 """
 
 from __future__ import annotations
@@ -22,8 +21,7 @@ ENV_ID = "foodcollector/FoodCollector-v0"
 
 # No max_episode_steps: the env truncates episodic runs itself, and reset-free runs must never end.
 if ENV_ID not in gymnasium.registry:
-    gymnasium.register(id=ENV_ID, entry_point="foodcollector.env:FoodCollectorEnv",
-                       vector_entry_point="foodcollector.vector:make_vector_env")
+    gymnasium.register(id=ENV_ID, entry_point="foodcollector.env:FoodCollectorEnv")
 
 from foodcollector.vector import FoodCollectorVectorEnv, make_vector_env  # noqa: E402 (needs ENV_ID)
 

@@ -49,8 +49,16 @@ def _worker(conn, num_envs: int, kwargs: dict) -> None:
     import foodcollector  # noqa: F401 (registers the id in a spawned process)
 
     env = make_vector_env(num_envs, 1, **kwargs)
+
+    def reset(arg):
+        seeds, options = arg
+        mask = (options or {}).get("reset_mask")
+        if mask is not None and not mask.any():  # none of this chunk's worlds: they go on as they are
+            return np.stack([e.unwrapped._observe() for e in env.envs]), {}
+        return env.reset(seed=seeds, options=options)
+
     commands = {
-        "reset": lambda arg: env.reset(seed=arg[0], options=arg[1]),
+        "reset": reset,
         "step": env.step,
         "render": lambda _: env.render(),
         "get_state": lambda _: {"autoreset": np.asarray(env._autoreset_envs, dtype=bool).copy(),
@@ -172,10 +180,13 @@ class FoodCollectorVectorEnv(VectorEnv):
             if len(seeds) != self.num_envs:
                 raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} worlds")
         mask = (options or {}).get("reset_mask")
-        if mask is not None and np.shape(mask) != (self.num_envs,):
-            raise ValueError(f"options['reset_mask'] must have shape ({self.num_envs},), got {np.shape(mask)}")
+        if mask is not None:
+            mask = np.asarray(mask)
+            if mask.dtype != np.bool_ or mask.shape != (self.num_envs,) or not mask.any():
+                raise ValueError(f"options['reset_mask'] must be a boolean array of shape ({self.num_envs},) with at "
+                                 f"least one True, got dtype {mask.dtype}, shape {mask.shape}")
         spans = list(zip(self._starts[:-1], self._starts[1:]))
-        chunk_options = [options if mask is None else {**options, "reset_mask": np.asarray(mask)[a:b]}
+        chunk_options = [options if mask is None else {**options, "reset_mask": mask[a:b]}
                          for a, b in spans]
         parts = self._ask("reset", [(seeds[a:b], o) for (a, b), o in zip(spans, chunk_options)])
         return np.concatenate([obs for obs, _ in parts]), merge_infos([i for _, i in parts], self.sizes)

@@ -25,6 +25,11 @@ from gridtasks.codes import NAMES
 from gridtasks.env import GridTaskEnv, can_render
 
 
+def _is_int(value) -> bool:
+    """An integer seed (Python's or numpy's; not a bool)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
 class GridTaskVectorEnv(VectorEnv):
     """Many worlds of one grid task stepped by one compiled call (Gymnasium next-step autoreset).
 
@@ -73,16 +78,20 @@ class GridTaskVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         """Reset every world, or those ``options["reset_mask"]`` selects (Gymnasium's boolean mask of shape
-        (num_envs,)); a seed starts a new life in each world it resets. Returns (obs, info) of every world.
+        (num_envs,)); a seed starts a new life in each world it resets (world i takes ``seed + i``, or
+        ``seed[i]`` given one int or None per world: None continues that world's life, as ``reset()`` does).
+        Returns (obs, info) of every world.
         """
         mask = self._reset_mask(options)
-        keys = self._world_keys(seed)
-        if keys is not None:
-            self._state["rng"][mask] = keys[mask]
-            self._state["lifetime_step"][mask] = 0
-            self._state["replay_layout"][mask] = False
-            self._seeded = True
+        keys, lives = self._new_lives(seed)
+        lives &= mask
+        self._state["rng"][lives] = keys[lives]
+        self._state["lifetime_step"][lives] = 0
+        self._state["replay_layout"][lives] = False
+        self._seeded = True
         reset_batch(self._state, self.rules, mask, self._buffers.obs, self.threads)
+        self._buffers.solved[mask] = False  # a fresh episode has solved nothing and met no predator yet
+        self._buffers.caught[mask] = False
         return self._out(self._buffers.obs), self._info()
 
     def _reset_mask(self, options: dict | None) -> np.ndarray:
@@ -98,25 +107,25 @@ class GridTaskVectorEnv(VectorEnv):
             raise RuntimeError("the first reset() lays out every world: call it without reset_mask")
         return mask.copy()
 
-    def _world_keys(self, seed) -> np.ndarray | None:
-        """Each world's new random-stream key for ``seed`` (an int: world i takes seed + i; or one int or None
-        per world), or None where the worlds keep their streams (no seed, after the first reset).
+    def _new_lives(self, seed) -> tuple[np.ndarray, np.ndarray]:
+        """(each world's new random-stream key, which worlds start a new life) for ``seed``: the worlds given an
+        int, and on the first reset every world (fresh entropy where its seed is None).
         """
-        if seed is None and self._seeded:
-            return None
-        if seed is None or (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)):
+        if seed is None or _is_int(seed):
             seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
-        elif isinstance(seed, (list, tuple, np.ndarray)) and all(
-                s is None or (isinstance(s, (int, np.integer)) and not isinstance(s, bool)) for s in seed):
+        elif isinstance(seed, (list, tuple, range, np.ndarray)) and all(s is None or _is_int(s) for s in seed):
             seeds = [None if s is None else int(s) for s in seed]
         else:
-            raise TypeError(f"reset's seed must be an int, or a list of {self.num_envs} ints or None (one per "
-                            f"world), got {seed!r}")
+            held = {type(s).__name__ for s in seed} if isinstance(seed, (list, tuple, np.ndarray)) else set()
+            raise TypeError(f"reset's seed must be an int, or one int or None per world, got "
+                            f"{type(seed).__name__}" + (f" of {', '.join(sorted(held))}" if held else ""))
         if len(seeds) != self.num_envs:
             raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} worlds")
-        first = next((s for s in seeds if s is not None), None)
-        self._np_random, _ = seeding.np_random(first)
-        return np.array([world_key(seeding.np_random(s)[0]) for s in seeds], dtype=np.uint64)
+        lives = np.array([s is not None or not self._seeded for s in seeds], dtype=np.bool_)
+        if lives.any():
+            self._np_random, _ = seeding.np_random(next((s for s in seeds if s is not None), None))
+        keys = [world_key(seeding.np_random(s)[0]) if new else 0 for s, new in zip(seeds, lives)]
+        return np.array(keys, dtype=np.uint64), lives
 
     def step(self, actions):
         """Step all worlds. Returns batched (obs, rewards, terminated, truncated, info)."""

@@ -139,11 +139,12 @@ def test_bad_reset_masks_and_seeds_are_one_line_errors():
     vec = gym.make_vec("gridtasks/Hunting-v0", num_envs=3, vectorization_mode="vector_entry_point")
     with pytest.raises(RuntimeError, match="first reset"):
         vec.reset(seed=0, options={"reset_mask": np.array([True, False, False])})
-    vec.reset(seed=[None, 2, 3])  # None: that world draws fresh entropy, as SyncVectorEnv allows
+    vec.reset(seed=range(3))
     with pytest.raises(ValueError, match=r"boolean array of shape \(3,\)"):
         vec.reset(options={"reset_mask": np.array([1, 0, 0])})
-    for bad in (3.0, "12", [1.9, 2, 3], True):
-        with pytest.raises(TypeError, match="seed must be an int, or a list of 3 ints or None"):
+    for bad, held in ((3.0, "float"), ("12", "str"), ([1.9, 2, 3], "list of float, int"), (True, "bool"),
+                      (np.arange(3.0), "ndarray of float64")):
+        with pytest.raises(TypeError, match=f"seed must be an int, or one int or None per world, got {held}$"):
             vec.reset(seed=bad)
     with pytest.raises(ValueError, match="copy must be True or False"):
         gym.make_vec("gridtasks/Hunting-v0", num_envs=2, vectorization_mode="vector_entry_point", copy="no")
@@ -156,3 +157,28 @@ def test_every_spec_serialises(env_id):
     assert gym.envs.registration.EnvSpec.from_json(spec.to_json()) == spec
     vec = gym.make_vec(env_id, num_envs=2)  # the string vector entry point loads
     assert type(vec.unwrapped).__name__ == "GridTaskVectorEnv"
+
+
+def test_a_none_seed_continues_that_worlds_life_and_a_reset_clears_solved_and_caught_as_sync():
+    """None in a seed list started a new life in the batched env but not in "sync"; a reset kept the last
+    step's solved and caught.
+    """
+    outs = {}
+    for mode in ("vector_entry_point", "sync"):
+        vec = gym.make_vec("gridtasks/Scavenging-v0", num_envs=3, vectorization_mode=mode, dynamism=0.5,
+                           predator_count=3, reset_free=True)
+        vec.reset(seed=0)
+        rng = np.random.default_rng(1)
+        caught = False
+        for _ in range(400):
+            info = vec.step(rng.integers(0, 7, 3))[4]
+            caught = caught or info["caught"].any()
+            if info["caught"].any():
+                break
+        assert caught
+        obs, info = vec.reset(seed=[None, 7, None])
+        outs[mode] = (obs, info["lifetime_step"])
+        assert not info["caught"].any() and not info["solved"].any()
+    np.testing.assert_array_equal(outs["vector_entry_point"][0], outs["sync"][0])
+    np.testing.assert_array_equal(outs["vector_entry_point"][1], outs["sync"][1])
+    assert outs["sync"][1][1] == 0 and outs["sync"][1][0] > 0

@@ -304,6 +304,20 @@ def test_a_task_that_pays_more_per_step_scales_the_divergence_bounds():
     assert blown(loss, max_q, 0.99, reward_bound=10_100).tolist() == [[False, False]]  # 1 010 000; 2.55e6
 
 
+def test_the_reports_reward_bound_reads_a_costlier_predator_from_the_runs_config(tmp_path):
+    """The report's bound stayed 200 for scavenging with predator_penalty=1000 (its env said 1 100)."""
+    import json
+
+    from train.config import TrainConfig
+    from train.experiments.report.runs import run_reward_bound
+
+    for penalty, bound in ((None, 200.0), (1000.0, 1100.0)):
+        cfg = TrainConfig().to_dict()
+        cfg["env"].update(task="scavenging", env_kwargs={} if penalty is None else {"predator_penalty": penalty})
+        (tmp_path / "config.json").write_text(json.dumps(cfg))
+        assert run_reward_bound(tmp_path) == bound
+
+
 def test_a_planted_results_file_cannot_make_the_report_read_or_gather_without_bound(tmp_path, monkeypatch):
     import train.experiments.report.stats as stats
     from train.experiments.report.runs import MAX_SEEDS, ReportError, read_columns, trusted_info

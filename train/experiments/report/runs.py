@@ -179,9 +179,9 @@ def run_gamma(run_dir: Path) -> float:
         return TrainConfig().dqn.gamma
 
 
-REWARD_PARAMETERS = ("reward_ladder", "goal")
-"""The task parameters that change what a step can pay (factory's); the only ones `run_reward_bound` builds an
-environment with, so a results tree cannot make the report build a huge one."""
+REWARD_PARAMETERS = ("reward_ladder", "goal", "predator_penalty")
+"""The task parameters that change what a step can pay (factory's ladder and goal, scavenging's predator cost); the
+only ones `run_reward_bound` builds an environment with, so a results tree cannot make the report build a huge one."""
 
 
 def run_reward_bound(run_dir: Path) -> float:
