@@ -6,7 +6,9 @@ from ecology.contract import (
     VisitGrid,
     check_action,
     check_render_mode,
+    check_reset_mask,
     make_test_mdp_kwargs,
+    render_mode_missing,
 )
 from ecology.knobs import (
     NUM_VALIDATION_LAYOUTS,
@@ -43,6 +45,8 @@ __all__ = [
     "VisitGrid",
     "check_action",
     "check_render_mode",
+    "check_reset_mask",
+    "render_mode_missing",
     "corner_cells",
     "corner_share",
     "count_entropy",

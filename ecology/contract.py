@@ -93,6 +93,31 @@ def check_action(action: Any, num_actions: int, names: Sequence[str] = ()) -> in
     return int(action)
 
 
+def check_reset_mask(options: Mapping[str, Any] | None, num_envs: int, at_least_one: bool = False) -> np.ndarray | None:
+    """Gymnasium's ``options["reset_mask"]`` of a vector env's reset as a boolean array of shape (num_envs,), None
+    without one; a mask of another dtype or shape (or, ``at_least_one``, with no True) is a one-line ValueError.
+    """
+    mask = (options or {}).get("reset_mask")
+    if mask is None:
+        return None
+    mask = np.asarray(mask)
+    if mask.dtype != np.bool_ or mask.shape != (num_envs,) or (at_least_one and not mask.any()):
+        need = " with at least one True" if at_least_one else ""
+        raise ValueError(f"options['reset_mask'] must be a boolean array of shape ({num_envs},){need}, got dtype "
+                         f"{mask.dtype}, shape {mask.shape}")
+    return mask
+
+
+def render_mode_missing(render_mode: str | None) -> bool:
+    """True, with Gymnasium's warning, when an env asked to ``render()`` has no render mode (it returns None)."""
+    if render_mode is not None:
+        return False
+    import gymnasium as gym
+
+    gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
+    return True
+
+
 def check_render_mode(render_mode: str | None, modes: Sequence[str]) -> str | None:
     """Return ``render_mode``, or raise ValueError unless it is None or one of ``modes``."""
     if render_mode is not None and render_mode not in modes:

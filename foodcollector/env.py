@@ -9,7 +9,15 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ecology import Ecology, VisitGrid, check_action, check_render_mode, make_test_mdp_kwargs, schedule_value
+from ecology import (
+    Ecology,
+    VisitGrid,
+    check_action,
+    check_render_mode,
+    make_test_mdp_kwargs,
+    render_mode_missing,
+    schedule_value,
+)
 from foodcollector.arena import RAY_VALUES, Arena
 from foodcollector.params import NUM_RAYS, PARAM_NAMES, UNITY_EPISODE_DECISIONS, FoodCollectorParams
 from foodcollector.render import FRAME_SIZE, draw_frame
@@ -210,8 +218,7 @@ class FoodCollectorEnv(gym.Env):
 
     def render(self) -> np.ndarray | None:
         """A top-down RGB frame (``render_mode="rgb_array"``), or None with a warning otherwise."""
-        if self.render_mode is None:
-            gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array' to make()")
+        if render_mode_missing(self.render_mode):
             return None
         return self.frame()
 

@@ -17,6 +17,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode, SyncVectorEnv, VectorEnv
 
+from ecology import check_reset_mask, render_mode_missing
 from foodcollector import ENV_ID
 
 
@@ -179,12 +180,7 @@ class FoodCollectorVectorEnv(VectorEnv):
             seeds = list(seed)
             if len(seeds) != self.num_envs:
                 raise ValueError(f"reset got {len(seeds)} seeds for {self.num_envs} worlds")
-        mask = (options or {}).get("reset_mask")
-        if mask is not None:
-            mask = np.asarray(mask)
-            if mask.dtype != np.bool_ or mask.shape != (self.num_envs,) or not mask.any():
-                raise ValueError(f"options['reset_mask'] must be a boolean array of shape ({self.num_envs},) with at "
-                                 f"least one True, got dtype {mask.dtype}, shape {mask.shape}")
+        mask = check_reset_mask(options, self.num_envs, at_least_one=True)  # as SyncVectorEnv (workers=1) asks
         spans = list(zip(self._starts[:-1], self._starts[1:]))
         chunk_options = [options if mask is None else {**options, "reset_mask": mask[a:b]}
                          for a, b in spans]
@@ -202,8 +198,7 @@ class FoodCollectorVectorEnv(VectorEnv):
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """One RGB frame per world (``render_mode="rgb_array"``), in world order; None without a render mode."""
-        if self.render_mode is None:
-            gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
+        if render_mode_missing(self.render_mode):
             return None
         return tuple(frame for part in self._ask("render", [None] * self.workers) for frame in part)
 

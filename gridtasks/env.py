@@ -15,7 +15,14 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ecology import Ecology, VisitGrid, check_action, check_render_mode, make_test_mdp_kwargs
+from ecology import (
+    Ecology,
+    VisitGrid,
+    check_action,
+    check_render_mode,
+    make_test_mdp_kwargs,
+    render_mode_missing,
+)
 from gridtasks import engine
 from gridtasks.batch import (  # noqa: F401 (check_* are re-exported for the task modules)
     StepBuffers,
@@ -71,8 +78,7 @@ def can_render(render_mode: str | None, seeded: bool) -> bool:
     """Whether an env can draw a frame: False, with Gymnasium's warning, without a render mode; an error before
     its first reset.
     """
-    if render_mode is None:
-        gym.logger.warn("render() called without render_mode; pass render_mode='rgb_array'")
+    if render_mode_missing(render_mode):
         return False
     if not seeded:
         raise RuntimeError("call reset() before render(): no world has been laid out yet")

@@ -9,7 +9,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ecology import Ecology
+from ecology import Ecology, check_reset_mask
 from gridtasks import engine
 from gridtasks.batch import (
     StepBuffers,
@@ -96,13 +96,9 @@ class GridTaskVectorEnv(VectorEnv):
 
     def _reset_mask(self, options: dict | None) -> np.ndarray:
         """The worlds a reset resets: all, or ``options["reset_mask"]`` (other options are ignored)."""
-        mask = (options or {}).get("reset_mask")
+        mask = check_reset_mask(options, self.num_envs)
         if mask is None:
             return np.ones(self.num_envs, dtype=np.bool_)
-        mask = np.asarray(mask)
-        if mask.dtype != np.bool_ or mask.shape != (self.num_envs,):
-            raise ValueError(f"options['reset_mask'] must be a boolean array of shape ({self.num_envs},), got "
-                             f"dtype {mask.dtype} and shape {mask.shape}")
         if not self._seeded and not mask.all():
             raise RuntimeError("the first reset() lays out every world: call it without reset_mask")
         return mask.copy()

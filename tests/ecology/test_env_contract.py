@@ -8,7 +8,16 @@ import pytest
 
 import foodcollector
 import gridtasks
-from ecology import EcologicalEnv, InvalidAction, VisitGrid, check_action, check_render_mode, make_test_mdp_kwargs
+from ecology import (
+    EcologicalEnv,
+    InvalidAction,
+    VisitGrid,
+    check_action,
+    check_render_mode,
+    check_reset_mask,
+    make_test_mdp_kwargs,
+    render_mode_missing,
+)
 
 ENV_IDS = [*gridtasks.ENV_IDS.values(), foodcollector.ENV_ID]
 
@@ -45,6 +54,21 @@ def test_render_mode_must_be_none_or_listed():
     assert check_render_mode("rgb_array", ["rgb_array"]) == "rgb_array"
     with pytest.raises(ValueError, match="unknown render_mode 'human'"):
         check_render_mode("human", ["rgb_array"])
+
+
+def test_a_reset_mask_is_checked_once_for_both_vector_envs():
+    assert check_reset_mask(None, 3) is None and check_reset_mask({"seed": 1}, 3) is None
+    np.testing.assert_array_equal(check_reset_mask({"reset_mask": [True, False, False]}, 3), [True, False, False])
+    assert not check_reset_mask({"reset_mask": np.zeros(3, bool)}, 3).any()  # the grid engine: a no-op reset
+    for bad, at_least_one in ((np.array([1, 0, 0]), False), (np.ones(2, bool), False), (np.zeros(3, bool), True)):
+        with pytest.raises(ValueError, match=r"must be a boolean array of shape \(3,\)"):
+            check_reset_mask({"reset_mask": bad}, 3, at_least_one)
+
+
+def test_render_without_a_render_mode_warns_alike_everywhere():
+    assert render_mode_missing("rgb_array") is False
+    with pytest.warns(UserWarning, match="render\\(\\) called without render_mode; pass render_mode='rgb_array'"):
+        assert render_mode_missing(None) is True
 
 
 def test_the_test_mdp_sets_the_knobs_and_the_horizon_over_the_task_parameters():
