@@ -41,6 +41,23 @@ def test_report_of_a_single_train_run(tmp_path, capsys):
     assert str(tmp_path) not in page and str(tmp_path) not in (out / "report.md").read_text()
 
 
+def test_a_single_run_report_counts_diverged_and_collapsed_seeds_as_an_experiment_does(tmp_path):
+    run = tmp_path / "run"
+    assert main(["train", "salad", *TINY, "--out", str(run)]) == 0  # two seeds
+    lines = (run / "metrics.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    rows = [line.split(",") for line in lines[1:]]
+    seed_1_last = [row for row in rows if row[header.index("seed")] == "1"][-1]
+    for row in rows:  # seed 1 blows up and collapses at its last evaluation; seed 0 stays sound
+        row[header.index("max_q")] = "1e6" if row is seed_1_last else "1.0"
+        row[header.index("top_action_share")] = "0.99" if row is seed_1_last else "0.3"
+    (run / "metrics.csv").write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    assert main(["report", str(run), "--no-videos"]) == 0
+    table = (run / "report" / "report.md").read_text()
+    assert "| 1 / 2 (seed 1) | 1 / 2 (seed 1) |" in table
+    assert (run / "report" / "figures" / "run_collapse.png").exists()
+
+
 def test_report_of_a_directory_that_is_neither_says_what_it_takes(tmp_path, capsys):
     (tmp_path / "notes.txt").write_text("hello")
     assert main(["report", str(tmp_path)]) == 2

@@ -121,7 +121,7 @@ def build_sections(source: Path, out: Path, videos: bool | None = None) -> list[
         reference = None if single else load_reference(exp)
         curves = (plot_seed_curves(exp, figures / f"{stem}_curves.png") if single
                   else plot_curves(exp, paper, figures / f"{stem}_curves.png", reference))
-        collapse = None if single else plot_collapse(exp, figures / f"{stem}_collapse.png")
+        collapse = plot_collapse(exp, figures / f"{stem}_collapse.png")
         heatmaps = []
         if exp.info.get("heatmaps"):
             heatmaps = [p for t in exp.tasks if (p := plot_heatmaps(exp, t, figures / f"{stem}_{t}_heatmaps.png"))]

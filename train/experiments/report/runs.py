@@ -322,8 +322,6 @@ def load_single_run(path: Path) -> ExperimentResults:
     label = (f"{'dynamic p=' + format(env.dynamism, 'g') if env.dynamism else 'static'}, "
              f"{'non-episodic' if env.reset_free else 'episodic'}, {env.reward} reward, lr {cfg.dqn.lr:g}"
              + (f", shaping {env.shaping}" if env.shaping not in ("0", "0.0") else ""))
-    metric = task_metric(env.task)
-    steps, values = read_metrics(path / "metrics.csv", metric)
     info = {"name": path.name, "paper": "ecorl train", "title": f"{env.task}: {label}",
             "description": f"One training run: {cfg.run.seeds} seed(s) x {cfg.total_steps:,} steps "
                            f"(first seed {cfg.run.first_seed}).",
@@ -331,7 +329,8 @@ def load_single_run(path: Path) -> ExperimentResults:
             "first_seed": cfg.run.first_seed,
             "tasks": {env.task: [{"name": condition, "label": label}]}}
     result = ExperimentResults(path.name, path, info)
-    if len(steps):
-        done = int(steps[-1]) >= cfg.total_steps
-        result.runs.append(Run(env.task, condition, label, path, metric, steps, values, done))
+    run = read_run(path, env.task, condition, label)  # the columns an experiment's report reads, so the same counts
+    if run is not None:
+        run.done = int(run.steps[-1]) >= cfg.total_steps
+        result.runs.append(run)
     return result
