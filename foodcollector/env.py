@@ -76,7 +76,7 @@ class FoodCollectorEnv(gym.Env):
 
     Paper: Co-Reyes et al. 2020, "Ecological Reinforcement Learning", §5.1 (the fifth task, "Unity food
     collector": dynamism = sphere speed, shaping = distance at which spheres appear from the agent).
-    Numbers: Unity ML-Agents Release 3-7 FoodCollector (see ``reference/unity-foodcollector.md``).
+    Numbers: Unity ML-Agents Release 3-7 FoodCollector (its differences from Unity: docs/fidelity.md).
 
     ## Description
     A 100 × 100 arena (walls at ±50) holds 25 green and 25 red spheres (radius 0.75). The agent is a

@@ -1,6 +1,7 @@
 """Task parameters of the food collector, with Unity ML-Agents' FoodCollector values as defaults.
 
-Every default is a number from `reference/unity-foodcollector.md` §1 unless its docstring says it is ours.
+Every default is a number of Unity ML-Agents' FoodCollector (Release 3-7) unless its docstring says it is ours;
+docs/fidelity.md lists where the task departs from Unity.
 Derived quantities (per-step factors, ray angles, bounds) are properties, never stored fields.
 """
 

@@ -6,7 +6,7 @@ view of shape ``(K, 1, out)``. Activations have shape ``(K, N, features)``. The 
 by hand: a few large batched products instead of autograd's many small operations, and its gradient comes
 back as one ``(K, P)`` tensor (each layer writes its part in place) that the optimiser, the per-agent
 gradient clipping and the Polyak update treat in one operation each. This is what makes a network this
-small fast on a CPU (see ``shared/reference/perf-notes.md``).
+small fast on a CPU (measured in docs/speed.md).
 
 Grid observations are 0/1 with a few active entries (25 of 125 for salad's 5 x 5 x 5 view), so for large
 batches the first view layer is computed as the sum of the weight rows of the active entries and the bias

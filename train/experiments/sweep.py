@@ -320,12 +320,29 @@ def settings_clash(job: Job) -> str:
     saved = Path(job.run_dir) / "config.json"
     if not saved.is_file():
         return ""
+    asked = TrainConfig.from_dict(job.config)
     try:
-        check_same_run(TrainConfig.from_dict(load_json(saved)), TrainConfig.from_dict(job.config), saved)
+        check_same_run(TrainConfig.from_dict(load_json(saved)), asked, saved)
+        step = _checkpoint_step(Path(job.run_dir))
+        if step > asked.total_steps:
+            raise RunDirError(f"the run stands at step {step}, beyond the {asked.total_steps} steps asked for; ask "
+                              f"for at least {step} steps")
     except (RunDirError, ValueError) as err:
         return (f"\n         will fail: {' '.join(str(err).split()).removesuffix('.')}; or pass --restart "
                 f"{Path(job.run_dir).name} to train it again from scratch")
     return ""
+
+
+def _checkpoint_step(run_dir: Path) -> int:
+    """The step of the run's checkpoint (its manifest only; -1 without one, or one that cannot be read)."""
+    from train.storage.checkpoint import CheckpointError, read_checkpoint
+
+    if not (run_dir / CHECKPOINT_NAME).is_file():
+        return -1
+    try:
+        return int(read_checkpoint(run_dir / CHECKPOINT_NAME, keys=[])["step"])
+    except (CheckpointError, OSError, ValueError, KeyError):
+        return -1
 
 
 def job_to_dict(job: Job) -> dict[str, Any]:

@@ -285,3 +285,16 @@ def test_dry_run_says_which_runs_clash_with_the_settings_asked_for(capsys, tmp_p
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("[ clash] headline/salad/static-episodic")
     assert "first_seed: checkpoint has 0, you asked for 3" in out[1] and "--restart static-episodic" in out[1]
+
+
+def test_dry_run_says_a_stopped_run_past_the_steps_asked_for_will_fail(capsys, tmp_path):
+    """A run stopped at step 5 700 was planned as [resume] for --steps 1000; the run then failed ('stands at step')."""
+    args = ["run", "headline", "--budget", "smoke", "--condition", "static-episodic", "--no-progress", "--out",
+            str(tmp_path)]
+    assert cli.main([*args, "--steps", "2000"]) == 0
+    (tmp_path / "headline" / "salad" / "static-episodic" / "done.json").unlink()  # as if stopped at its last epoch
+    capsys.readouterr()
+    assert cli.main([*args, "--steps", "1000", "--dry-run"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("[ clash] headline/salad/static-episodic")
+    assert "stands at step 2200, beyond the 1200 steps asked for" in out[1]
