@@ -58,6 +58,20 @@ def test_a_single_run_report_counts_diverged_and_collapsed_seeds_as_an_experimen
     assert (run / "report" / "figures" / "run_collapse.png").exists()
 
 
+def test_a_report_after_the_run_trained_on_films_its_final_policy_again(tmp_path):
+    """A grown run's report showed the film of its earlier final policy (video.json still at the old step)."""
+    import json
+
+    run = tmp_path / "run"
+    assert main(["train", "salad", *TINY, "--out", str(run)]) == 0
+    assert main(["report", str(run)]) == 0
+    first = json.loads((run / "video.json").read_text())["step"]
+    assert main(["train", "salad", *TINY, "--steps", "2000", "--resume", "--out", str(run)]) == 0
+    assert main(["report", str(run)]) == 0
+    last = int((run / "metrics.csv").read_text().splitlines()[-1].split(",")[0])
+    assert json.loads((run / "video.json").read_text())["step"] == last > first
+
+
 def test_report_of_a_directory_that_is_neither_says_what_it_takes(tmp_path, capsys):
     (tmp_path / "notes.txt").write_text("hello")
     assert main(["report", str(tmp_path)]) == 2

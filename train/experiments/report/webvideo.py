@@ -47,7 +47,7 @@ def film_best_seed(run: Run, target: Path, policy: Path | None = None, steps: in
                          strip=target.with_name(STRIP_NAME), steps=steps)
     first = _first_seed(run.path)
     info = {"seed": first + index, "episodes": video.episodes, "solved": video.solved, "metric": video.metric,
-            "summary": video.summary(), "final": float(run.values[-1][index])}
+            "summary": video.summary(), "final": float(run.values[-1][index]), "step": int(run.steps[-1])}
     atomic_text(target.with_name(VIDEO_INFO), json.dumps(info, indent=2) + "\n")
     return video.path
 
@@ -61,9 +61,10 @@ def _first_seed(run_dir: Path) -> int:
 
 
 def render_missing_videos(exp: ExperimentResults, root: Path | None = None) -> list[Path]:
-    """Film the best seed of every finished run that has no ``video.mp4`` yet, from its checkpoint or, without
-    one, its exported best policy (``policies/best.npz``); a run reached through a symbolic link below ``root``
-    (the tree the report was given) is not filmed.
+    """Film the best seed of every finished run that has no ``video.mp4`` yet, or one filmed at an earlier step
+    (the run trained on since), from its checkpoint or, without one, its exported best policy
+    (``policies/best.npz``); a run reached through a symbolic link below ``root`` (the tree the report was given)
+    is not filmed.
     """
     from train.storage.rundir import RUN_POLICIES_DIR, RunDirError
 
@@ -73,13 +74,26 @@ def render_missing_videos(exp: ExperimentResults, root: Path | None = None) -> l
         target = run.path / "video.mp4"
         exported = run.path / RUN_POLICIES_DIR / "best.npz"
         has_checkpoint = (run.path / CHECKPOINT_NAME).exists()
-        if run.done and not target.exists() and (has_checkpoint or exported.is_file()):
+        if run.done and not _film_is_current(run, target) and (has_checkpoint or exported.is_file()):
             try:
                 no_link_below(root or exp.path, target)
                 made.append(film_best_seed(run, target, None if has_checkpoint else exported, steps))
             except (RunDirError, ValueError, FileNotFoundError) as err:
                 print(f"ecorl report: no video of {run.path}: {err}", file=sys.stderr)
     return made
+
+
+def _film_is_current(run: Run, target: Path) -> bool:
+    """True when ``target`` exists and its sidecar does not name an earlier step than the run's last evaluation
+    (films made before sidecars recorded their step count as current).
+    """
+    if not target.exists():
+        return False
+    try:
+        filmed = load_json(target.with_name(VIDEO_INFO)).get("step")
+    except (OSError, ValueError, AttributeError):
+        return True
+    return not isinstance(filmed, int) or filmed >= int(run.steps[-1])
 
 
 def find_videos(root: Path) -> list[Path]:
