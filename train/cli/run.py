@@ -68,6 +68,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def _list_experiments() -> None:
+    from train.config import TrainConfig
     from train.experiments.sweep import plan
 
     for exp in EXPERIMENTS.values():
@@ -76,7 +77,8 @@ def _list_experiments() -> None:
         for name in BUDGETS:
             b = exp.budget(name)
             jobs = plan(exp, name, "/nonexistent")
-            steps = sorted({b.steps_for(t) for t in exp.tasks})
+            trained = [TrainConfig.from_dict(j.config).total_steps for j in jobs if not j.is_measurement]
+            steps = sorted(set(trained) or {b.steps_for(t) for t in exp.tasks})  # as trained: whole epochs
             print(f"    {name:<6s} {len(jobs)} runs x {b.seeds} seeds x {'/'.join(f'{s:,}' for s in steps)} steps")
 
 
