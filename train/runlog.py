@@ -138,6 +138,14 @@ def stop_requested() -> bool:
     return any(stop.is_set() for stop in _STOPS)
 
 
+def request_stop() -> None:
+    """Stop every `stop_on_signal` block of this process as a first signal would (at its epoch's end, with a
+    checkpoint): how a sweep's worker passes on a stop that reached only the sweep.
+    """
+    for stop in list(_STOPS):
+        stop.set()
+
+
 @contextmanager
 def stop_on_signal():
     """An event set by SIGINT/SIGTERM while inside the block (main thread only; elsewhere never set).

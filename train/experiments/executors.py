@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 
 from train.experiments.jobs import Job, JobResult, Pack, execute_unit
-from train.runlog import stop_requested
+from train.runlog import request_stop, stop_requested
 
 _STOP = None
 """In a local worker process: the sweep's stop event (set when the user interrupts the sweep)."""
@@ -52,7 +52,8 @@ def worker_context():
 
 def _init_worker(stop, sweep: int) -> None:
     """Worker initializer: Ctrl-C reaches the trainer's own handler (a clean stop), not the pool loop; the
-    worker gets SIGTERM (a clean stop too) when the sweep's process dies, and then takes no further job.
+    worker gets SIGTERM (a clean stop too) when the sweep's process dies, and then takes no further job; a
+    stop of the sweep alone (a signal to its pid only) stops the running trainer as a first signal would.
     """
     global _STOP
     _STOP = stop
@@ -61,6 +62,13 @@ def _init_worker(stop, sweep: int) -> None:
     if _sweep_gone():  # it died before this worker started
         os._exit(1)
     threading.Thread(target=_watch_sweep, daemon=True, name="ecorl-sweep-watch").start()
+    threading.Thread(target=_relay_stop, args=(stop,), daemon=True, name="ecorl-stop-relay").start()
+
+
+def _relay_stop(stop) -> None:
+    """In a worker: once the sweep's stop event is set, stop the running trainer at its epoch's end."""
+    stop.wait()
+    request_stop()
 
 
 def _follow_sweep(pid: int) -> None:
@@ -172,26 +180,67 @@ def run_local(jobs: Sequence[Job | Pack], workers: int, on_result: Callable[[Job
     stop = ctx.Event()
     pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(jobs))), mp_context=ctx,
                                initializer=_init_worker, initargs=(stop, os.getpid()))
+    pending: dict = {}
     try:
         with _sigterm_interrupts():
-            _collect(pool, jobs, results, on_result)
-    except KeyboardInterrupt as err:
-        stop.set()  # queued jobs do not start; running trainers stop at their epoch end
-        if isinstance(err, _Terminated):  # Ctrl-C reached the workers too; SIGTERM only this process
-            for proc in list((pool._processes or {}).values()):
-                proc.terminate()
-        pool.shutdown(wait=True, cancel_futures=True)
+            _collect(pool, jobs, pending, results, on_result)
+    except KeyboardInterrupt:
+        _shut_down_after_a_stop(pool, stop, list(pending))
         raise
     pool.shutdown(wait=True)
     return results
 
 
-def _collect(pool, jobs: Sequence[Job | Pack], results: list[JobResult],
+SECOND_SIGNAL_GRACE_S = 3.0
+"""After a second signal, how long the sweep waits for its workers to stop by themselves (a Ctrl-C reaches
+them too, and a trainer's second signal stops it at once) before it sends them SIGTERM."""
+
+WORKER_EXIT_S = 30.0
+"""Once every job has answered, how long an idle worker may take to exit before it is killed."""
+
+
+def _shut_down_after_a_stop(pool, stop, futures: list) -> None:
+    """Set the sweep's ``stop`` (queued jobs do not start; running trainers stop at their epoch end, see
+    `_relay_stop`) and wait for the running jobs to answer. A second signal meanwhile stops them at once: workers
+    still at work after `SECOND_SIGNAL_GRACE_S` get SIGTERM, which a stopping trainer takes as its second signal
+    (the last checkpoint stands); a third kills them. Then the workers are ended and reaped here, with signals
+    ignored: the pool's own shutdown joins a thread, and a signal during that join (Python before 3.13) marks the
+    thread finished while it runs, which left the sweep waiting in its exit handlers for ever.
+    """
+    from concurrent.futures import wait
+
+    workers = list((pool._processes or {}).values())
+    try:
+        stop.set()
+        wait(futures)
+    except KeyboardInterrupt:
+        try:
+            if wait(futures, timeout=SECOND_SIGNAL_GRACE_S).not_done:
+                for proc in workers:
+                    proc.terminate()
+            wait(futures)
+        except KeyboardInterrupt:
+            for proc in workers:
+                proc.kill()
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, signal.SIG_IGN)
+    pool.shutdown(wait=False, cancel_futures=True)  # idle workers get their sentinel and exit
+    for proc in workers:
+        proc.join(WORKER_EXIT_S)
+        if proc.is_alive():
+            proc.kill()
+            proc.join()
+
+
+def _collect(pool, jobs: Sequence[Job | Pack], pending: dict, results: list[JobResult],
              on_result: Callable[[JobResult], None]) -> None:
-    """Submit ``jobs`` to ``pool`` and gather their results as they finish."""
+    """Submit ``jobs`` to ``pool`` (their futures into ``pending``) and gather their results as they finish."""
     from concurrent.futures import FIRST_COMPLETED, wait
 
-    pending = {pool.submit(_execute_unless_stopped, job): job for job in jobs}
+    pending.update({pool.submit(_execute_unless_stopped, job): job for job in jobs})
     while pending:
         finished, _ = wait(pending, return_when=FIRST_COMPLETED)
         for fut in finished:

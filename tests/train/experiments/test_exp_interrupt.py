@@ -155,3 +155,48 @@ def test_ctrl_c_stops_cleanly_and_the_rerun_resumes(tmp_path, cli):
     assert all((r / CHECKPOINT_NAME).exists() for r in runs if (r / "config.json").exists())
     cli(*args)
     assert all((out / "rnd" / "factory" / c / DONE_FILE).exists() for c in ("static", "rnd", "dynamic", "env-shaping"))
+
+
+def _start_long_sweep(out: Path) -> subprocess.Popen:
+    """A one-condition sweep long enough (about a minute) that a run ending on its own would be noticed; returns
+    once its run has logged an evaluation.
+    """
+    args = ("run", "headline", "--budget", "smoke", "--condition", "dynamic-reset-free", "--steps", "60000",
+            "--jobs", "1", "--no-progress", "--out", str(out))
+    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while not list(out.glob("headline/salad/*/metrics.csv")):
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.1)
+    return proc
+
+
+def _wait_or_kill(proc: subprocess.Popen, timeout_s: float = 90) -> str:
+    """The sweep's stderr once it exits; a sweep still there after ``timeout_s`` is killed (group) and fails."""
+    try:
+        return proc.communicate(timeout=timeout_s)[1]
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        pytest.fail(f"the sweep had not exited {timeout_s:.0f} s after the signal")
+
+
+def test_sigint_to_the_sweep_alone_stops_its_running_trainer(tmp_path):
+    out = tmp_path / "sweep-only"
+    proc = _start_long_sweep(out)
+    os.kill(proc.pid, signal.SIGINT)  # `kill -INT PID`, `timeout --foreground -s INT`: the workers get nothing
+    err = _wait_or_kill(proc)
+    run = out / "headline" / "salad" / "dynamic-reset-free"
+    assert proc.returncode == 130 and "re-run the same command to resume" in err
+    assert not (run / DONE_FILE).exists() and _checkpoint_step(run) > 0  # it stopped early, with a checkpoint
+
+
+def test_a_second_signal_while_the_sweep_stops_ends_it_without_hanging(tmp_path):
+    out = tmp_path / "twice"
+    proc = _start_long_sweep(out)
+    os.kill(proc.pid, signal.SIGINT)
+    time.sleep(0.3)
+    os.killpg(proc.pid, signal.SIGINT)  # the second reaches the workers too, as `timeout -s INT` or Ctrl-C does
+    err = _wait_or_kill(proc)
+    assert proc.returncode == 130 and "re-run the same command to resume" in err
