@@ -110,6 +110,7 @@ def table(finished: Path, root: Path) -> list[tuple[str, list[str], str]]:
     runs = crafted_runs(finished, root)
     a_file = root / "a-file"
     a_file.write_text("x")
+    (root / "empty-dir").mkdir()
     cases = [
         ("warm-up takes every step", ["train", "salad", "--steps", "1000", "--warmup-steps", "2000", "--out",
                                       str(root / "w")], "warmup_steps (2000) must be below steps (1000)"),
@@ -129,6 +130,10 @@ def table(finished: Path, root: Path) -> list[tuple[str, list[str], str]]:
         ("demo --out under a file", ["demo", "--steps", "2", "--out", str(a_file / "d")], "a-file"),
         ("run --out under a file", ["run", "rnd", "--budget", "smoke", "--task", "factory", "--out",
                                     str(a_file / "r")], "a-file"),
+        ("train --resume of a directory that holds no run", ["train", "salad", "--resume", "--out",
+                                                              str(root / "empty-dir")],
+         "holds no run (no config.json"),
+        ("report of a run's metrics.csv", ["report", str(finished / "metrics.csv")], "is a file; give the directory"),
     ]
     expected = {"zip bomb": "compressed", "huge header": "declares", "nested json": "nests deeper",
                 "step 1e999": "not finite", "grid_size 3000": "grid_size must be at most",

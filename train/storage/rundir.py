@@ -151,6 +151,9 @@ class RunDir:
 
     def _no_checkpoint_message(self) -> str:
         """Why a directory without a checkpoint cannot be resumed, and what to do instead."""
+        if self.never_started() and not (self.path / "config.json").exists():
+            return (f"cannot resume: {self.path} holds no run (no config.json, no {CHECKPOINT_NAME}); drop --resume "
+                    f"to start one there")
         if self.never_started():
             return (f"cannot resume: the run in {self.path} was stopped before its first {CHECKPOINT_NAME} was "
                     f"complete, so it holds no progress; start it afresh with the same command without --resume")

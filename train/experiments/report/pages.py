@@ -335,6 +335,8 @@ def make_report(root: str | Path, videos: bool | None = None, out: str | Path | 
     for them (the headline experiments, single runs).
     """
     source = Path(root).resolve()
+    if source.is_file():
+        raise FileNotFoundError(f"{root} is a file; give the directory that holds it ({Path(root).parent})")
     if not source.is_dir():
         raise FileNotFoundError(f"no results directory {root}")
     target = Path(out).resolve() if out is not None else default_out(source)
