@@ -91,7 +91,8 @@ class Heartbeat:
                 pass
 
     def close(self) -> None:
-        """Close the bar."""
+        """Write the heartbeat a last time (a run stopped early stands where it stopped), and close the bar."""
+        self.write()
         self.bar.close()
 
 

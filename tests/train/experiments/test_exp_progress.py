@@ -95,3 +95,22 @@ def test_speed_is_measured_in_as_many_processes_as_will_train_side_by_side():
     together = measure_speed_together(config, 2)
     assert together.random_epoch_s > 0 and together.greedy_epoch_s >= together.random_epoch_s
     assert together.evaluation_s > 0 and together.startup_s > 0
+
+
+def test_a_stopped_run_leaves_its_heartbeat_at_the_step_it_stopped(tmp_path):
+    """progress.json said step 700 of a run that stopped at 5 700 (a heartbeat is due only every few seconds)."""
+    from train.runlog import Heartbeat
+
+    class Bar:
+        def update(self, n):
+            pass
+
+        def close(self):
+            pass
+
+    path = tmp_path / PROGRESS_FILE
+    beat = Heartbeat(Bar(), [path], total=10_000, initial=0)
+    beat.update(700)  # the first heartbeat is due at once
+    beat.update(5_000)  # the next one is not due yet
+    beat.close()  # the run stopped here
+    assert read_heartbeat(path)["step"] == 5_700
