@@ -141,12 +141,7 @@ def test_unknown_executor(executor):
 def test_ctrl_c_stops_cleanly_and_the_rerun_resumes(tmp_path, cli):
     out = tmp_path / "ctrl-c"
     args = ("run", "rnd", "--budget", "smoke", "--steps", "20000", "--jobs", "2", "--no-progress", "--out", str(out))
-    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 240
-    while not list(out.glob("rnd/factory/*/metrics.csv")):
-        assert proc.poll() is None and time.monotonic() < deadline
-        time.sleep(0.1)
+    proc = _start_sweep(args, out, "rnd/factory/*/metrics.csv")
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130 and "re-run the same command to resume" in err
@@ -157,19 +152,26 @@ def test_ctrl_c_stops_cleanly_and_the_rerun_resumes(tmp_path, cli):
     assert all((out / "rnd" / "factory" / c / DONE_FILE).exists() for c in ("static", "rnd", "dynamic", "env-shaping"))
 
 
+def _start_sweep(args: tuple[str, ...], out: Path, logged: str) -> subprocess.Popen:
+    """``ecorl ARGS`` in its own process group (stderr piped); returns once ``out`` holds a file matching
+    ``logged`` (a run has logged an evaluation).
+    """
+    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while not list(out.glob(logged)):
+        assert proc.poll() is None and time.monotonic() < deadline
+        time.sleep(0.1)
+    return proc
+
+
 def _start_long_sweep(out: Path) -> subprocess.Popen:
     """A one-condition sweep long enough (about a minute) that a run ending on its own would be noticed; returns
     once its run has logged an evaluation.
     """
     args = ("run", "headline", "--budget", "smoke", "--condition", "dynamic-reset-free", "--steps", "60000",
             "--jobs", "1", "--no-progress", "--out", str(out))
-    proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 240
-    while not list(out.glob("headline/salad/*/metrics.csv")):
-        assert proc.poll() is None and time.monotonic() < deadline
-        time.sleep(0.1)
-    return proc
+    return _start_sweep(args, out, "headline/salad/*/metrics.csv")
 
 
 def _wait_or_kill(proc: subprocess.Popen, timeout_s: float = 90) -> str:
