@@ -334,14 +334,16 @@ def settings_clash(job: Job) -> str:
 
 
 def _checkpoint_step(run_dir: Path) -> int:
-    """The step of the run's checkpoint (its manifest only; -1 without one, or one that cannot be read)."""
-    from train.storage.checkpoint import CheckpointError, read_checkpoint
+    """The step of the run's checkpoint (`RunDir.saved_config`, no arrays read); -1 without one, or one that cannot
+    be read (resuming then says why).
+    """
+    from train.storage.rundir import RunDir, RunDirError
 
     if not (run_dir / CHECKPOINT_NAME).is_file():
         return -1
     try:
-        return int(read_checkpoint(run_dir / CHECKPOINT_NAME, keys=[])["step"])
-    except (CheckpointError, OSError, ValueError, KeyError):
+        return RunDir(run_dir).saved_config()[1]
+    except (RunDirError, OSError):
         return -1
 
 
