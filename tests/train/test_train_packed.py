@@ -160,7 +160,7 @@ def test_a_run_interrupted_inside_an_evaluation_is_reported_interrupted(tmp_path
     assert [r.status for r in execute_pack(Pack(tuple(jobs)))] == ["interrupted"] * 4
 
 
-def test_experiments_run_together_share_a_pack_across_experiments_and_train_a_copy_once(tmp_path):
+def test_experiments_run_together_share_a_pack_across_experiments_and_train_a_copy_once(tmp_path, capsys):
     from train.cli import main
     from train.experiments.multi import plan_many, split_copies
 
@@ -183,3 +183,6 @@ def test_experiments_run_together_share_a_pack_across_experiments_and_train_a_co
     assert (copy / "done.json").exists() and not (copy / "checkpoint.npz").exists()
     assert main(["run", "dynamism-sweep", *asked[:6], "--condition", "p0", "--no-progress",
                  "--out", str(together)]) == 0  # the copy counts as done for the experiment run alone
+    printed = capsys.readouterr()
+    assert "dynamism-sweep, this run:" in printed.out  # the results on stdout, so `> log.txt` keeps them
+    assert "dynamism-sweep, this run:" not in printed.err

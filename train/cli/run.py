@@ -28,7 +28,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="every experiment that trains, as one sweep: a configuration several of them name is "
                              "trained once and copied, and with --pack (or a GPU) a task's conditions share packs "
                              "across experiments")
-    parser.add_argument("--list", action="store_true", help="list the experiments and their budgets, then exit")
+    parser.add_argument("--list", action="store_true",
+                        help="list the experiments (those named, or all) and their budgets, then exit")
     parser.add_argument("--task", nargs="+", metavar="T", help="only these tasks of the experiment")
     parser.add_argument("--condition", nargs="+", metavar="C",
                         help="only these conditions (e.g. to give each machine its own; see --dry-run for names)")
@@ -67,11 +68,12 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     return parser
 
 
-def _list_experiments() -> None:
+def _list_experiments(names: list[str]) -> None:
+    """Print the experiments named (every one when none is) with their tasks and budgets."""
     from train.config import TrainConfig
     from train.experiments.sweep import plan
 
-    for exp in EXPERIMENTS.values():
+    for exp in [get_experiment(name) for name in names] or EXPERIMENTS.values():
         print(f"{exp.name} ({exp.paper}): {exp.title}")
         print(f"    tasks: {', '.join(exp.tasks)}")
         for name in BUDGETS:
@@ -86,7 +88,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Plan the experiment's runs and execute those not done yet."""
     began = time.monotonic()
     if args.list:
-        _list_experiments()
+        with user_errors(ValueError):
+            _list_experiments(args.experiment)
         return 0
     if args.all and args.experiment:
         parser.error("--all runs every experiment that trains; drop the names, or drop --all")
@@ -252,7 +255,7 @@ def _finish(where: Path, report: bool) -> int:
             print(relative(path))
         page = relative(paths[-1])
     with user_errors(FileNotFoundError, ValueError):
-        print("\n".join(run_summary(where)), file=sys.stderr)
+        print("\n".join(run_summary(where)))  # the results: stdout, so that `> log.txt` keeps them
     if page is not None:
         print(f"open {page} in a browser (report.md beside it)", file=sys.stderr)
     else:

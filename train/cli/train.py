@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from train.cli.common import check_out_dir, user_errors
-from train.cli.flags import add_config_arguments, flag, given_settings, shown
+from train.cli.flags import add_config_arguments, flag, given_settings, in_flags, shown
 from train.config import SECTIONS, TrainConfig, _jsonable
 from train.experiments.choices import TUNED
 from train.tasks import TASKS
@@ -88,12 +88,15 @@ def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
     with the given ones); raises ValueError or `RunDirError` with a one-line reason.
     """
     given = given_settings(args)
-    cfg = TrainConfig().replace(**{**tuned_settings(args.task, given), **given, "task": args.task})
-    out = args.out or default_run_dir(cfg)
-    check_out_dir(out)
-    if args.resume:
-        cfg = resume_config(out, args.task, {**given, "task": args.task})
-    cfg.check_trains()
+    try:
+        cfg = TrainConfig().replace(**{**tuned_settings(args.task, given), **given, "task": args.task})
+        out = args.out or default_run_dir(cfg)
+        check_out_dir(out)
+        if args.resume:
+            cfg = resume_config(out, args.task, {**given, "task": args.task})
+        cfg.check_trains()
+    except ValueError as err:
+        raise ValueError(in_flags(str(err))) from err
     return cfg, out
 
 
@@ -131,6 +134,6 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         last = [r for r in rows if r["step"] == rows[-1]["step"]]
         key = "success" if trainer.task.metric == "success" else "return"
         mean = sum(r[key] for r in last) / len(last)
-        print(f"step {last[0]['step']}: mean {key} over {len(last)} seed(s) = {mean:.3f}", file=sys.stderr)
+        print(f"step {last[0]['step']}: mean {key} over {len(last)} seed(s) = {mean:.3f}")  # the result: stdout
     print(f"next: ecorl report {out} (curves per seed, heat-maps, a video of the best seed)", file=sys.stderr)
     return 0

@@ -56,6 +56,9 @@ def test_run_list_and_dry_run(capsys, tmp_path):
     assert cli.main(["run", "--list"]) == 0
     out = capsys.readouterr().out
     assert "headline (Fig. 4 (salad panel))" in out and "paper  20 runs x 10 seeds" in out
+    assert cli.main(["run", "hunting-inventory", "--list"]) == 0  # only those named
+    out = capsys.readouterr().out
+    assert out.startswith("hunting-inventory (") and "headline" not in out
     assert cli.main(["run", "shaping", "--task", "foodcollector", "--budget", "paper", "--dry-run",
                           "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out.splitlines()
@@ -176,10 +179,24 @@ def test_film_counts_whole_episodes_and_solved_ones():
     assert (film.episodes, film.solved) == (3, 2)
     assert len(film.frames) == 1 + 3 * 3 + 2  # first reset, 9 steps, two resets between episodes
     assert film.first_episode == 4  # its reset frame and three steps
+    assert (film.ended, film.steps) == (3, 9)
     film = film_rollout(_CountingEnv(3), lambda obs: 1, seed=0, steps=4)
-    assert (film.episodes, film.solved, len(film.frames)) == (2, 1, 1 + 4 + 1)
+    assert (film.episodes, film.ended, film.solved, len(film.frames)) == (2, 1, 1, 1 + 4 + 1)
     assert film.first_episode == 4
     assert film_rollout(_CountingEnv(9), lambda obs: 1, seed=0, steps=5).first_episode == 6  # cut short
+
+
+def test_a_film_cut_inside_an_episode_does_not_count_the_part_as_an_episode():
+    from pathlib import Path
+
+    from train.experiments.video import Video
+
+    cut = Video(Path("v.mp4"), episodes=2, solved=1, total_return=1.0, metric="success", ended=1, steps=4)
+    assert cut.summary() == "1 solve(s) in the 4 steps filmed (1 whole episode(s) and part of one more)"
+    first = Video(Path("v.mp4"), episodes=1, solved=0, total_return=2.5, metric="return", ended=0, steps=40)
+    assert first.summary() == "return 2.5 over the 40 steps filmed (part of one episode)"
+    whole = Video(Path("v.mp4"), episodes=3, solved=2, total_return=0.0, metric="success", ended=3, steps=9)
+    assert whole.summary() == "solved 2 of the 3 episode(s) filmed"
 
 
 @pytest.mark.parametrize(("max_frames", "episodes", "frames"), [(1, 1, 4), (4, 1, 4), (5, 2, 8), (9, 3, 12)])
