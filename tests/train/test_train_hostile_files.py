@@ -113,7 +113,7 @@ def table(finished: Path, root: Path) -> list[tuple[str, list[str], str]]:
     (root / "empty-dir").mkdir()
     cases = [
         ("warm-up takes every step", ["train", "salad", "--steps", "1000", "--warmup-steps", "2000", "--out",
-                                      str(root / "w")], "warmup_steps (2000) must be below steps (1000)"),
+                                      str(root / "w")], "--warmup-steps (2000) must be below steps (1000)"),
         ("memory of every per-seed buffer", ["train", "salad", "--seeds", "1000000", "--buffer-size", "2", "--out",
                                              str(root / "m")], "use fewer --seeds"),
         ("fifo checkpoint", ["train", "salad", "--resume", "--out", str(runs["fifo checkpoint"])], "FIFO"),

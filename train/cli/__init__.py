@@ -50,7 +50,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not (sys.argv[1:] if argv is None else argv):  # a bare ``ecorl``: the overview, not an error
         parser.print_help()
         return 0
-    args = parser.parse_args(argv)
+    args, extras = parser.parse_known_args(argv)
+    if extras:  # named by the subcommand's parser, which knows its flags (the top level only knows --version)
+        args.command_parser.reject_unknown(extras)
     try:
         return args.handler(args, args.command_parser)
     except UserError as err:

@@ -76,7 +76,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
                    "random": policy.random_draws(args.random_draws, args.rollouts)}
     eps = policy.cfg.eval.eval_epsilon if args.epsilon is None else args.epsilon
     print(f"{policy.task}, {args.rollouts} validation layouts of the test MDP ({policy.describe_test_mdp()}):")
-    print(f"  policy (epsilon {eps:g}): {outcome(results['policy'], metric)}")
+    print(f"  policy (epsilon {eps:g}; other exploration draws than the training run's evaluations, so it differs "
+          f"from theirs by sampling noise): {outcome(results['policy'], metric)}")
     if args.random_draws == 1:
         print(f"  random (uniform random): {outcome(results['random'], metric)}")
     else:

@@ -33,5 +33,6 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     meta = load_policy_file(path).meta
     success = meta.get("validation_success")
     shown = "n/a" if success is None else f"{100 * success:.0f} %"
-    print(f"{path}: agent {meta['agent']} at step {meta['step']}, validation success {shown}")
+    print(f"{path}: agent {meta['agent']} at step {meta['step']}, validation success {shown} (the run's own "
+          f"evaluation; `ecorl evaluate {path}` draws the exploration afresh, so its figure differs by sampling noise)")
     return 0

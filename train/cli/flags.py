@@ -85,6 +85,15 @@ def given_settings(args: argparse.Namespace) -> dict[str, Any]:
     return given
 
 
+def in_flags(message: str) -> str:
+    """A config check's message (``eval_every must be ...``) with its leading field name spelt as the flag
+    (``--eval-every must be ...``), which is what the user typed.
+    """
+    name, sep, rest = message.partition(" ")
+    fields = {f.name for s in SECTIONS.values() for f in dataclasses.fields(s)} - set(SKIPPED_FIELDS)
+    return f"{flag(name)} {rest}" if sep and name in fields else message
+
+
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
     """The TrainConfig given by parsed arguments (defaults for every flag not given)."""
     return TrainConfig().replace(**given_settings(args))

@@ -120,6 +120,10 @@ class Film:
     """Sum of the rewards over the film."""
     first_episode: int
     """Frames of the first episode (its reset frame to its last step)."""
+    ended: int = 0
+    """Episodes that ended inside the film (``episodes - ended`` is the one cut off by a film of so many steps)."""
+    steps: int = 0
+    """Environment steps filmed."""
 
 
 def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | None = None,
@@ -129,7 +133,7 @@ def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | 
     frames when one ends (the first episode is always whole). The first frame is included.
     """
     obs, _ = env.reset(seed=seed)
-    frames, started, solved, solved_now, taken, total = [env.render()], 1, 0, False, 0, 0.0
+    frames, started, ended, solved, solved_now, taken, total = [env.render()], 1, 0, 0, False, 0, 0.0
     first_episode = None
     while steps is None or taken < steps:
         obs, reward, terminated, truncated, info = env.step(act(obs))
@@ -139,14 +143,14 @@ def film_rollout(env, act: Callable[[np.ndarray], int], seed: int, steps: int | 
         solved_now |= bool(info.get("solved", False))
         if terminated or truncated:
             first_episode = first_episode or len(frames)
-            solved, solved_now = solved + solved_now, False
+            solved, solved_now, ended = solved + solved_now, False, ended + 1
             enough = started == episodes or (max_frames is not None and len(frames) >= max_frames)
             if (steps is None and enough) or taken == steps:
                 break
             obs, _ = env.reset()
             frames.append(env.render())
             started += 1
-    return Film(frames, started, solved + solved_now, total, first_episode or len(frames))
+    return Film(frames, started, solved + solved_now, total, first_episode or len(frames), ended, taken)
 
 
 @dataclass(frozen=True)
@@ -165,9 +169,20 @@ class Video:
     """The task's evaluation metric, 'success' or 'return' (`train.tasks.Task.metric`)."""
     strip: Path | None = None
     """The filmstrip of the first episode, if one was asked for."""
+    ended: int | None = None
+    """Episodes that ended inside the film (None: all of them; fewer when a film of so many steps cut the last)."""
+    steps: int = 0
+    """Environment steps filmed."""
 
     def summary(self) -> str:
-        """One line on how the filmed episodes went, in the task's metric."""
+        """One line on how the filmed episodes went, in the task's metric; a film cut inside an episode says so
+        rather than count the part as an episode.
+        """
+        if self.ended is not None and self.ended < self.episodes:
+            whole = f"{self.ended} whole episode(s) and part of one more" if self.ended else "part of one episode"
+            if self.metric == "return":
+                return f"return {self.total_return:.1f} over the {self.steps} steps filmed ({whole})"
+            return f"{self.solved} solve(s) in the {self.steps} steps filmed ({whole})"
         if self.metric == "return":
             return f"mean return {self.total_return / self.episodes:.1f} over the {self.episodes} episode(s) filmed"
         return f"solved {self.solved} of the {self.episodes} episode(s) filmed"
@@ -217,4 +232,5 @@ def record_video(task: str | None, out: str | Path, policy_path: str | Path | No
     write_h264(film.frames, out, fps=fps)
     if strip is not None:
         strip = write_filmstrip(film.frames[:film.first_episode], strip)
-    return Video(Path(out), film.episodes, film.solved, film.total_return, get_task(task).metric, strip)
+    return Video(Path(out), film.episodes, film.solved, film.total_return, get_task(task).metric, strip,
+                 film.ended, film.steps)

@@ -73,6 +73,29 @@ def test_invalid_values_are_reported(capsys):
     assert "malformed shaping schedule" in capsys.readouterr().err
 
 
+def test_a_value_error_names_the_flag_the_user_typed(capsys):
+    assert main(["train", "salad", "--eval-every", "0"]) == 2
+    assert capsys.readouterr().err.strip() == "ecorl train: error: --eval-every must be an integer >= 1, got 0"
+
+
+def test_a_misspelt_flag_or_choice_is_named_by_its_subcommand_with_the_nearest_valid_one(capsys):
+    for argv, said in ((["train", "salad", "--sed=3"], "ecorl train: error: unrecognized arguments: --sed=3; did "
+                        "you mean --seeds?"),
+                       (["run", "headline", "--budgte", "paper"], "ecorl run: error: unrecognized arguments: --budgte "
+                        "paper; did you mean --budget?"),
+                       (["train", "salad", "--zzz"], "ecorl train: error: unrecognized arguments: --zzz (see ecorl "
+                        "train --help)"),
+                       (["trian"], "did you mean train?"), (["run", "headline", "--budget", "papr"],
+                                                            "did you mean paper?")):
+        with pytest.raises(SystemExit) as stop:
+            main(argv)
+        err = capsys.readouterr().err.strip()
+        assert stop.value.code == 2 and len(err.splitlines()) == 1 and said in err, err
+    with pytest.raises(SystemExit):
+        main(["run", "headlin", "--dry-run"])
+    assert "unknown experiment 'headlin' (did you mean headline?)" in capsys.readouterr().err
+
+
 def test_default_run_dir_names_the_condition():
     cfg = _parse("--dynamism", "0.1", "--reset-free", "--seeds", "3", "--shaping", "linear:1:0:1000")
     assert str(default_run_dir(cfg)) == "runs/salad-p0.1-slinear_1_0_1000-resetfree-sparse-seeds0-2"
@@ -83,7 +106,7 @@ def test_cli_trains_a_tiny_run(tmp_path, capsys):
                  "--eval-rollouts", "2", "--eval-horizon", "10", "--buffer-size", "1000", "--no-progress",
                  "--out", str(tmp_path / "run")])
     assert code == 0
-    assert "mean success over 1 seed(s)" in capsys.readouterr().err
+    assert "mean success over 1 seed(s)" in capsys.readouterr().out  # the result on stdout, kept by `> log.txt`
     assert (tmp_path / "run" / "metrics.csv").exists()
 
 

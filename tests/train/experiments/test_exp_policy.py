@@ -170,7 +170,7 @@ def test_export_and_video_commands(run_dir, tmp_path, capsys):
     assert "not a run directory" in capsys.readouterr().err
     assert cli.main(["evaluate", str(out), "--rollouts", "5"]) == 0
     printed = capsys.readouterr().out
-    assert "salad, 5 validation layouts" in printed and "policy (epsilon 0.1)" in printed
+    assert "salad, 5 validation layouts" in printed and "policy (epsilon 0.1; other exploration draws" in printed
     assert "uniform random" in printed
     with pytest.raises(SystemExit):
         cli.main(["evaluate", str(out), "--epsilon", "1.5"])

@@ -63,6 +63,7 @@ def test_report_writes_figures_tables_and_page(report, smoke_tasks):
         assert (root / "figures" / f"{name}_{task}_heatmaps.png").exists()
     assert "≈ 70%" in md and "≈ 12%" in md  # the paper's text-quoted (approximate) values beside ours
     assert "= 908 ± 480" in md  # Table 1 (exact)
+    assert "(100 per evaluation at the paper's budget; this directory's runs: 10;" in md  # smoke evaluates 10
     assert str(root / "report.md") in stdout
 
 

@@ -51,6 +51,7 @@ from train.experiments.report.runs import (
     load_experiment,
     load_reference,
     load_single_run,
+    run_evaluation_size,
 )
 from train.experiments.report.stats import BOOTSTRAP_NOTE, COLLAPSED_RULE, DIVERGED_RULE
 from train.experiments.report.tables import (
@@ -167,13 +168,22 @@ LIVE_NOTE = ("the runs of this results directory (on this machine, usually short
 """What the page says between the shipped lead and the directory's own runs."""
 
 
+def _layouts(sections: Sequence[Section]) -> str:
+    """How many layouts an evaluation used: 100 in the shipped runs, and what this directory's runs used."""
+    sizes = sorted({n for s in sections for r in s.exp.runs
+                    if r.metric == "success" and (n := run_evaluation_size(r.path)) is not None})
+    here = f"; this directory's runs: {' or '.join(map(str, sizes))}" if sizes and sizes != [100] else ""
+    return f"100 per evaluation at the paper's budget{here}"
+
+
 def write_markdown(source: Path, out: Path, sections: Sequence[Section], leads: Sequence[Lead] = ()) -> Path:
     """``report.md``: the shipped lead, then per experiment its figures, final results beside the paper's,
     and the paper's claims.
     """
     lines = [f"# ecorl report: `{_shown(source)}`", "",
-             "Success = fraction of the 100 fixed validation layouts of the test MDP solved (food collector: mean "
-             "return over validation episodes), at the last evaluation; mean over seeds with a 95% confidence "
+             f"Success = fraction of the fixed validation layouts of the test MDP solved ({_layouts(sections)}; "
+             "food collector: mean return over its evaluation episodes, 10 a seed at the paper's budget), at the "
+             "last evaluation; mean over seeds with a 95% confidence "
              f"interval ({BOOTSTRAP_NOTE}). Seeds diverged: {DIVERGED_RULE}. Seeds collapsed: {COLLAPSED_RULE}. "
              "Paper column: **≈** a value read "
              "from a figure or quoted in the paper's text (approximate), **=** a value from a table (exact), — "

@@ -179,6 +179,16 @@ def run_gamma(run_dir: Path) -> float:
         return TrainConfig().dqn.gamma
 
 
+def run_evaluation_size(run_dir: Path) -> int | None:
+    """How many validation layouts (food collector: episodes) each evaluation of the run used (its config.json;
+    None where unreadable).
+    """
+    try:
+        return int(load_json(run_dir / "config.json")["eval"]["eval_rollouts"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
 REWARD_PARAMETERS = ("reward_ladder", "goal", "predator_penalty")
 """The task parameters that change what a step can pay (factory's ladder and goal, scavenging's predator cost); the
 only ones `run_reward_bound` builds an environment with, so a results tree cannot make the report build a huge one."""
