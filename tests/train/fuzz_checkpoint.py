@@ -124,12 +124,14 @@ def cases(state: dict[str, Any], rng: np.random.Generator, count: int | None, pr
 
 
 def run_cli(label: str, argv: list[str]) -> dict:
-    """``ecorl ARGV`` in this process: its exit status and stderr (or the exception that escaped)."""
+    """``ecorl ARGV`` in this process: its exit status and stderr (or the exception that escaped); what it prints
+    on stdout (its result) is dropped, since this script's own stdout carries one JSON line per case.
+    """
     from train.cli import main
 
     err = io.StringIO()
     try:
-        with contextlib.redirect_stderr(err):
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
             rc = main(argv)
     except SystemExit as exc:
         rc = exc.code
