@@ -204,7 +204,7 @@ def train_released(checkout: Path, seed: int, out: Path) -> None:
             print(f"released seed {seed} {stored}: max |Q| {np.abs(q).max():.3g}", flush=True)
 
 
-TABLE_STEPS = (5_200, 25_200, 50_200, 75_200, 95_200, 150_200, 200_200, 235_200, 300_200)
+TABLE_STEPS = (5_200, 25_200, 50_200, 75_200, 95_200, 150_200, 200_200, 235_200, 300_200, 400_200, 495_200)
 """Steps of the side-by-side table."""
 
 
