@@ -36,7 +36,7 @@ class OneLineParser(argparse.ArgumentParser):
         """Exit naming the arguments this (sub)command does not take, with the nearest flag for a misspelt one."""
         flags = [flag for action in self._actions for flag in action.option_strings]
         hints = [_did_you_mean(extra.split("=")[0], flags) for extra in extras if extra.startswith("--")]
-        self.error(f"unrecognized arguments: {' '.join(extras)}{''.join(hint for hint in hints if hint)}"
+        self.error(f"unrecognized arguments: {' '.join(extras)}{''.join(hints)}"
                    f"{'' if any(hints) else f' (see {self.prog} --help)'}")
 
 

@@ -11,7 +11,7 @@ import json
 import typing
 from typing import Any
 
-from train.config import SECTIONS, TrainConfig, field_docs
+from train.config import SECTIONS, TrainConfig, field_docs, field_owners
 
 SKIPPED_FIELDS = ("task",)
 """Config fields that are not flags (the task is the positional argument)."""
@@ -74,8 +74,7 @@ def add_config_arguments(parser: argparse.ArgumentParser) -> None:
 
 def given_settings(args: argparse.Namespace) -> dict[str, Any]:
     """The config fields given on the command line (flags left out are absent), tuples for lists."""
-    names = {f.name for s in SECTIONS.values() for f in dataclasses.fields(s)}
-    given = {key: value for key, value in vars(args).items() if key in names}
+    given = {key: value for key, value in vars(args).items() if key in field_owners()}
     for name in ("env_kwargs", "eval_env_kwargs"):
         if name in given:
             given[name] = dict(given[name])
@@ -90,8 +89,7 @@ def in_flags(message: str) -> str:
     (``--eval-every must be ...``), which is what the user typed.
     """
     name, sep, rest = message.partition(" ")
-    fields = {f.name for s in SECTIONS.values() for f in dataclasses.fields(s)} - set(SKIPPED_FIELDS)
-    return f"{flag(name)} {rest}" if sep and name in fields else message
+    return f"{flag(name)} {rest}" if sep and name in field_owners() and name not in SKIPPED_FIELDS else message
 
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:

@@ -120,9 +120,9 @@ class Film:
     """Sum of the rewards over the film."""
     first_episode: int
     """Frames of the first episode (its reset frame to its last step)."""
-    ended: int = 0
+    ended: int
     """Episodes that ended inside the film (``episodes - ended`` is the one cut off by a film of so many steps)."""
-    steps: int = 0
+    steps: int
     """Environment steps filmed."""
 
 

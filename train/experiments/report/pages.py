@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ecology import NUM_VALIDATION_LAYOUTS
 from train.experiments.catalog import EXPERIMENTS
 from train.experiments.report.figures import (
     plot_collapse,
@@ -66,6 +67,7 @@ from train.experiments.report.webvideo import WebVideo, caption_of, find_videos,
 from train.storage.fileio import atomic_text
 from train.storage.rundir import EXPERIMENT_FILE
 from train.storage.safeio import no_link_below
+from train.tasks import TASKS
 
 
 @dataclass
@@ -172,8 +174,9 @@ def _layouts(sections: Sequence[Section]) -> str:
     """How many layouts an evaluation used: 100 in the shipped runs, and what this directory's runs used."""
     sizes = sorted({n for s in sections for r in s.exp.runs
                     if r.metric == "success" and (n := run_evaluation_size(r.path)) is not None})
-    here = f"; this directory's runs: {' or '.join(map(str, sizes))}" if sizes and sizes != [100] else ""
-    return f"100 per evaluation at the paper's budget{here}"
+    here = (f"; this directory's runs: {' or '.join(map(str, sizes))}" if sizes and sizes != [NUM_VALIDATION_LAYOUTS]
+            else "")
+    return f"{NUM_VALIDATION_LAYOUTS} per evaluation at the paper's budget{here}"
 
 
 def write_markdown(source: Path, out: Path, sections: Sequence[Section], leads: Sequence[Lead] = ()) -> Path:
@@ -182,7 +185,8 @@ def write_markdown(source: Path, out: Path, sections: Sequence[Section], leads: 
     """
     lines = [f"# ecorl report: `{_shown(source)}`", "",
              f"Success = fraction of the fixed validation layouts of the test MDP solved ({_layouts(sections)}; "
-             "food collector: mean return over its evaluation episodes, 10 a seed at the paper's budget), at the "
+             f"food collector: mean return over its evaluation episodes, {TASKS['foodcollector'].eval_rollouts} a "
+             "seed at the paper's budget), at the "
              "last evaluation; mean over seeds with a 95% confidence "
              f"interval ({BOOTSTRAP_NOTE}). Seeds diverged: {DIVERGED_RULE}. Seeds collapsed: {COLLAPSED_RULE}. "
              "Paper column: **≈** a value read "
