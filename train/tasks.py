@@ -17,6 +17,7 @@ import foodcollector
 import gridtasks
 from ecology import NUM_VALIDATION_LAYOUTS, EcologicalEnv, VisitGrid
 from train.config import CONFIG_OWNED_ENV_KWARGS, EnvConfig
+from train.config.checks import unknown_choice
 
 
 @dataclass(frozen=True)
@@ -52,7 +53,7 @@ TASKS: dict[str, Task] = _task_table()
 def get_task(name: str) -> Task:
     """The task called ``name`` (its package, imported above, has registered its id)."""
     if name not in TASKS:
-        raise ValueError(f"unknown task {name!r}; choose one of: {', '.join(TASKS)}")
+        raise unknown_choice("task", name, TASKS)
     return TASKS[name]
 
 

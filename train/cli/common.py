@@ -9,11 +9,12 @@ or by running the code that may fail inside ``with user_errors(...)``; `train.cl
 from __future__ import annotations
 
 import argparse
-import difflib
 import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from train.config.checks import did_you_mean
 
 DEFAULT_OUT = Path("results")
 """Where ``ecorl run`` and ``ecorl measure`` write unless told otherwise."""
@@ -29,21 +30,15 @@ class OneLineParser(argparse.ArgumentParser):
         message = " ".join(message.split())
         chosen = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
         if chosen:
-            message += _did_you_mean(chosen[1], re.findall(r"'([^']*)'", chosen[2]))
+            message += did_you_mean(chosen[1], re.findall(r"'([^']*)'", chosen[2]))
         self.exit(2, f"{self.prog}: error: {message}\n")
 
     def reject_unknown(self, extras: list[str]) -> None:
         """Exit naming the arguments this (sub)command does not take, with the nearest flag for a misspelt one."""
         flags = [flag for action in self._actions for flag in action.option_strings]
-        hints = [_did_you_mean(extra.split("=")[0], flags) for extra in extras if extra.startswith("--")]
+        hints = [did_you_mean(extra.split("=")[0], flags) for extra in extras if extra.startswith("--")]
         self.error(f"unrecognized arguments: {' '.join(extras)}{''.join(hints)}"
                    f"{'' if any(hints) else f' (see {self.prog} --help)'}")
-
-
-def _did_you_mean(given: str, valid: list[str]) -> str:
-    """``'; did you mean X?'`` for the valid name closest to ``given``, or '' when none is close."""
-    close = difflib.get_close_matches(given, valid, n=1, cutoff=0.7)
-    return f"; did you mean {close[0]}?" if close else ""
 
 
 class UserError(Exception):

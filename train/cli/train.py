@@ -11,6 +11,7 @@ from typing import Any
 from train.cli.common import check_out_dir, user_errors
 from train.cli.flags import add_config_arguments, flag, given_settings, in_flags, shown
 from train.config import SECTIONS, TrainConfig, _jsonable
+from train.config.checks import unknown_choice
 from train.experiments.choices import TUNED
 from train.tasks import TASKS
 
@@ -61,7 +62,7 @@ def tuned_settings(task: str, given: dict[str, Any]) -> dict[str, Any]:
 def _task_name(text: str) -> str:
     """Validate the task argument with a message that lists the choices."""
     if text not in TASKS:
-        raise argparse.ArgumentTypeError(f"unknown task {text!r}; choose one of: {', '.join(TASKS)}")
+        raise argparse.ArgumentTypeError(str(unknown_choice("task", text, TASKS)))
     return text
 
 

@@ -27,6 +27,7 @@ from train.config.checks import (
     check_kwargs,
     check_layers,
     check_number,
+    unknown_choice,
 )
 
 MAX_LR = 1.0
@@ -71,7 +72,7 @@ class EnvConfig:
         check_number("dynamism", self.dynamism, 0.0, 1.0)
         parse_schedule(self.shaping)  # a malformed or endless schedule is a one-line error
         if self.reward not in REWARD_MODES:
-            raise ValueError(f"unknown reward mode {self.reward!r}; choose one of {', '.join(REWARD_MODES)}")
+            raise unknown_choice("reward mode", self.reward, REWARD_MODES)
         check_int("horizon", self.horizon)
         check_kwargs("env_kwargs", self.env_kwargs, CONFIG_OWNED_ENV_KWARGS)
 

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 __all__ = ["MAX_EVAL_HORIZON", "MAX_EVAL_ROLLOUTS", "MAX_INT", "MAX_THREADS", "check_choices", "check_int",
-           "check_kwargs", "check_layers", "check_number"]
+           "check_kwargs", "check_layers", "check_number", "did_you_mean", "unknown_choice"]
 
 
 def check_number(name: str, value: Any, low: float | None = None, high: float | None = None,
@@ -60,9 +61,27 @@ def check_kwargs(name: str, kwargs: Any, owned: Mapping[str, str]) -> None:
         raise ValueError(f"{name} may not set {taken[0]!r}: the config owns it ({owned[taken[0]]})")
 
 
+def did_you_mean(given: str, valid: Iterable[str]) -> str:
+    """``'; did you mean X?'`` for the valid name closest to ``given``, or '' when none is close."""
+    close = difflib.get_close_matches(given, list(valid), n=1, cutoff=0.7)
+    return f"; did you mean {close[0]}?" if close else ""
+
+
+def unknown_choice(kind: str, value: Any, choices: Iterable[str]) -> ValueError:
+    """The one-line error for a ``kind`` (task, experiment, budget, ...) that is none of ``choices``: it names the
+    nearest choice, then lists them all.
+    """
+    choices = list(choices)
+    hint = did_you_mean(value, choices) if isinstance(value, str) else ""
+    return ValueError(f"unknown {kind} {value!r}{hint} (choose one of {', '.join(choices)})" if hint
+                      else f"unknown {kind} {value!r}; choose one of {', '.join(choices)}")
+
+
 def check_choices(section: Any) -> None:
     """Raise ValueError for a field whose value is not one of its declared ``choices``."""
     for f in dataclasses.fields(section):
         choices = f.metadata.get("choices")
         if choices and getattr(section, f.name) not in choices:
-            raise ValueError(f"{f.name} must be one of {', '.join(choices)}, got {getattr(section, f.name)!r}")
+            value = getattr(section, f.name)
+            hint = did_you_mean(value, choices) if isinstance(value, str) else ""
+            raise ValueError(f"{f.name} must be one of {', '.join(choices)}, got {value!r}{hint}")

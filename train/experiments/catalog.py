@@ -21,13 +21,13 @@ settings, the steps per seed) are in `train.experiments.choices`, with where eac
 
 from __future__ import annotations
 
-import difflib
 import math
 from collections.abc import Mapping
 from types import MappingProxyType
 from typing import Any
 
 from train.config import TrainConfig
+from train.config.checks import unknown_choice
 from train.experiments.choices import (
     DYNAMIC_P,
     GRID_TASKS,
@@ -343,7 +343,5 @@ EXPERIMENTS: Mapping[str, Experiment] = MappingProxyType(_experiments())
 def get_experiment(name: str) -> Experiment:
     """The experiment called ``name`` (with a message listing the choices)."""
     if name not in EXPERIMENTS:
-        close = difflib.get_close_matches(name, EXPERIMENTS, n=1, cutoff=0.7)
-        hint = f" (did you mean {close[0]}?)" if close else ""
-        raise ValueError(f"unknown experiment {name!r}{hint}; choose one of: {', '.join(EXPERIMENTS)}")
+        raise unknown_choice("experiment", name, EXPERIMENTS)
     return EXPERIMENTS[name]

@@ -9,6 +9,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from train.config.checks import unknown_choice
+
 BUDGETS = ("smoke", "quick", "paper")
 """Budget names, cheapest first."""
 
@@ -90,7 +92,7 @@ class Experiment:
         if name == "paper":
             return Budget(self.paper_seeds, dict(self.paper_steps), eval_every=5_000)
         if name not in self.budgets:
-            raise ValueError(f"unknown budget {name!r}; choose one of {', '.join(BUDGETS)}")
+            raise unknown_choice("budget", name, BUDGETS)
         return self.budgets[name]
 
     def select_tasks(self, tasks: list[str] | tuple[str, ...] | None) -> tuple[str, ...]:

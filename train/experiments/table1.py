@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ecology import hitting_time, marginal_entropy, parse_schedule
+from train.config.checks import unknown_choice
 from train.experiments.choices import DYNAMIC_P, GRID_TASKS, SHAPING_BASE, SHAPING_SCHEDULE
 from train.storage.fileio import atomic_text
 
@@ -55,7 +56,7 @@ def _vector_env(task: str, num: int, **knobs):
     from train.tasks import TASKS
 
     if task not in GRID_TASKS:
-        raise ValueError(f"unknown grid task {task!r}; choose one of {', '.join(GRID_TASKS)}")
+        raise unknown_choice("grid task", task, GRID_TASKS)
     return gym.make_vec(TASKS[task].env_id, num_envs=num, vectorization_mode="vector_entry_point",
                         copy=False, reset_free=True, reward="sparse", **knobs)
 
@@ -107,7 +108,7 @@ def measure_rows(kind: str, task: str, seeds: int, steps: int, seed: int = 0) ->
     if kind == "entropy":
         return [summarise(f"dynamism p={p:g}", view_entropies(task, seeds, steps, seed, dynamism=p))
                 for p in DYNAMISM_LEVELS]
-    raise ValueError(f"unknown measurement {kind!r}; choose one of {', '.join(MEASUREMENTS)}")
+    raise unknown_choice("measurement", kind, MEASUREMENTS)
 
 
 def format_value(kind: str, row: dict[str, Any]) -> str:

@@ -93,7 +93,7 @@ def test_a_misspelt_flag_or_choice_is_named_by_its_subcommand_with_the_nearest_v
         assert stop.value.code == 2 and len(err.splitlines()) == 1 and said in err, err
     with pytest.raises(SystemExit):
         main(["run", "headlin", "--dry-run"])
-    assert "unknown experiment 'headlin' (did you mean headline?)" in capsys.readouterr().err
+    assert "unknown experiment 'headlin'; did you mean headline?" in capsys.readouterr().err
 
 
 def test_default_run_dir_names_the_condition():
@@ -134,3 +134,14 @@ def test_run_help_lists_every_experiment_apart_from_its_description():
     help_text = build_parser().parse_args(["run"]).command_parser.format_help()
     for name in EXPERIMENTS:
         assert f"  {name}  " in help_text, f"{name} runs into its description in `ecorl run --help`"
+
+
+def test_a_config_built_in_python_names_the_nearest_choice_for_a_misspelt_one():
+    from train.config import EnvConfig
+    from train.experiments.catalog import get_experiment
+
+    with pytest.raises(ValueError, match=r"^unknown reward mode 'waypont'; did you mean waypoint\? \(choose one of "
+                                         r"sparse, waypoint, .*\)$"):
+        TrainConfig(env=EnvConfig(reward="waypont"))
+    with pytest.raises(ValueError, match=r"^unknown budget 'huge'; choose one of smoke, "):
+        get_experiment("dynamism").budget("huge")

@@ -309,13 +309,13 @@ def test_the_reports_reward_bound_reads_a_costlier_predator_from_the_runs_config
     import json
 
     from train.config import TrainConfig
-    from train.experiments.report.runs import run_reward_bound
+    from train.experiments.report.runs import reward_bound, run_config
 
     for penalty, bound in ((None, 200.0), (1000.0, 1100.0)):
         cfg = TrainConfig().to_dict()
         cfg["env"].update(task="scavenging", env_kwargs={} if penalty is None else {"predator_penalty": penalty})
         (tmp_path / "config.json").write_text(json.dumps(cfg))
-        assert run_reward_bound(tmp_path) == bound
+        assert reward_bound(run_config(tmp_path)) == bound
 
 
 def test_a_planted_results_file_cannot_make_the_report_read_or_gather_without_bound(tmp_path, monkeypatch):

@@ -47,12 +47,12 @@ from train.experiments.report.runs import (
     REFERENCE_DIR,
     ExperimentResults,
     ReportError,
+    evaluation_size,
     find_experiment_dirs,
     is_run_dir,
     load_experiment,
     load_reference,
     load_single_run,
-    run_evaluation_size,
 )
 from train.experiments.report.stats import BOOTSTRAP_NOTE, COLLAPSED_RULE, DIVERGED_RULE
 from train.experiments.report.tables import (
@@ -173,7 +173,7 @@ LIVE_NOTE = ("the runs of this results directory (on this machine, usually short
 def _layouts(sections: Sequence[Section]) -> str:
     """How many layouts an evaluation used: 100 in the shipped runs, and what this directory's runs used."""
     sizes = sorted({n for s in sections for r in s.exp.runs
-                    if r.metric == "success" and (n := run_evaluation_size(r.path)) is not None})
+                    if r.metric == "success" and (n := evaluation_size(r.config)) is not None})
     here = (f"; this directory's runs: {' or '.join(map(str, sizes))}" if sizes and sizes != [NUM_VALIDATION_LAYOUTS]
             else "")
     return f"{NUM_VALIDATION_LAYOUTS} per evaluation at the paper's budget{here}"

@@ -42,6 +42,8 @@ class Run:
     """(E, S) where a seed's values blew up at an evaluation (`stats.blown`; all False when unknown)."""
     top_share: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     """(E, S) the greedy policy's top-action share at each evaluation (NaN where the file predates it)."""
+    config: dict[str, Any] = field(default_factory=dict)
+    """The run's config.json as read (`run_config`; empty where unreadable)."""
 
     def top_shares(self, evaluation: int = -1) -> np.ndarray:
         """(S,) each seed's top-action share at evaluation ``evaluation`` (all NaN when unknown)."""
@@ -171,42 +173,51 @@ def read_metrics(path: Path, metric: str) -> tuple[np.ndarray, np.ndarray]:
     return steps, values
 
 
-def run_gamma(run_dir: Path) -> float:
-    """The discount of the run in ``run_dir`` (its config.json; the default where unreadable)."""
+def run_config(run_dir: Path) -> dict[str, Any]:
+    """The run's config.json as read (an empty dict where unreadable): `Run.config`, read once per run."""
     try:
-        return float(load_json(run_dir / "config.json")["dqn"]["gamma"])
-    except (OSError, ValueError, KeyError, TypeError):
+        config = load_json(run_dir / "config.json")
+    except (OSError, ValueError):
+        return {}
+    return config if isinstance(config, dict) else {}
+
+
+def config_gamma(config: dict[str, Any]) -> float:
+    """The discount of a run's config.json (the default where it does not say)."""
+    try:
+        return float(config["dqn"]["gamma"])
+    except (ValueError, KeyError, TypeError):
         return TrainConfig().dqn.gamma
 
 
-def run_evaluation_size(run_dir: Path) -> int | None:
-    """How many validation layouts (food collector: episodes) each evaluation of the run used (its config.json;
-    None where unreadable).
+def evaluation_size(config: dict[str, Any]) -> int | None:
+    """How many validation layouts (food collector: episodes) each evaluation used, from a run's config.json
+    (None where it does not say).
     """
     try:
-        return int(load_json(run_dir / "config.json")["eval"]["eval_rollouts"])
-    except (OSError, ValueError, KeyError, TypeError):
+        return int(config["eval"]["eval_rollouts"])
+    except (ValueError, KeyError, TypeError):
         return None
 
 
 REWARD_PARAMETERS = ("reward_ladder", "goal", "predator_penalty")
 """The task parameters that change what a step can pay (factory's ladder and goal, scavenging's predator cost); the
-only ones `run_reward_bound` builds an environment with, so a results tree cannot make the report build a huge one."""
+only ones `reward_bound` builds an environment with, so a results tree cannot make the report build a huge one."""
 
 
-def run_reward_bound(run_dir: Path) -> float:
-    """The largest per-step |reward| of the run's training environment (`train.tasks.EnvInfo.reward_bound`, from
-    its config.json; `stats.REWARD_BOUND` where unreadable).
+def reward_bound(config: dict[str, Any]) -> float:
+    """The largest per-step |reward| of the training environment a run's config.json describes
+    (`train.tasks.EnvInfo.reward_bound`; `stats.REWARD_BOUND` where unreadable).
     """
     from train.tasks import get_task, probe
 
     try:
-        env = TrainConfig.from_dict(load_json(run_dir / "config.json")).env
+        env = TrainConfig.from_dict(config).env
         if not set(env.env_kwargs) & set(REWARD_PARAMETERS) and env.task != "factory":
             return REWARD_BOUND  # no other task's rewards depend on its parameters
         kept = {k: v for k, v in env.env_kwargs.items() if k in REWARD_PARAMETERS}
         return probe(get_task(env.task), replace(env, env_kwargs=kept)).reward_bound
-    except (OSError, ValueError, KeyError, TypeError):
+    except (ValueError, KeyError, TypeError):
         return REWARD_BOUND
 
 
@@ -217,8 +228,9 @@ def read_run(run_dir: Path, task: str, condition: str, label: str) -> Run | None
         run_dir / "metrics.csv", (metric, "loss", "max_q", "top_action_share"), missing=(0.0, 0.0, 0.0, np.nan))
     if not len(steps):
         return None
+    config = run_config(run_dir)
     return Run(task, condition, label, run_dir, metric, steps, values, (run_dir / DONE_FILE).exists(), seeds,
-               blown(loss, max_q, run_gamma(run_dir), run_reward_bound(run_dir)), top_share)
+               blown(loss, max_q, config_gamma(config), reward_bound(config)), top_share, config)
 
 
 def find_experiment_dirs(root: Path) -> list[Path]:

@@ -45,19 +45,11 @@ def film_best_seed(run: Run, target: Path, policy: Path | None = None, steps: in
     index = best_seed(run)
     video = record_video(None, target, policy_path=policy or run.path, seed_index=0 if policy else index,
                          strip=target.with_name(STRIP_NAME), steps=steps)
-    first = _first_seed(run.path)
-    info = {"seed": first + index, "episodes": video.episodes, "solved": video.solved, "metric": video.metric,
-            "summary": video.summary(), "final": float(run.values[-1][index]), "step": int(run.steps[-1])}
+    info = {"seed": int(run.seed_ids[index]), "episodes": video.episodes, "solved": video.solved,
+            "metric": video.metric, "summary": video.summary(),
+            "final": float(run.values[-1][index]), "step": int(run.steps[-1])}
     atomic_text(target.with_name(VIDEO_INFO), json.dumps(info, indent=2) + "\n")
     return video.path
-
-
-def _first_seed(run_dir: Path) -> int:
-    """The run's first seed number (0 when config.json does not say)."""
-    try:
-        return int(load_json(run_dir / "config.json")["run"]["first_seed"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return 0
 
 
 def render_missing_videos(exp: ExperimentResults, root: Path | None = None) -> list[Path]:
