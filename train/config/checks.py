@@ -62,8 +62,12 @@ def check_kwargs(name: str, kwargs: Any, owned: Mapping[str, str]) -> None:
 
 
 def did_you_mean(given: str, valid: Iterable[str]) -> str:
-    """``'; did you mean X?'`` for the valid name closest to ``given``, or '' when none is close."""
-    close = difflib.get_close_matches(given, list(valid), n=1, cutoff=0.7)
+    """``'; did you mean X?'`` for the valid name closest to ``given`` (the one it begins, where only one does),
+    or '' when none is close.
+    """
+    valid = list(valid)
+    begun = [name for name in valid if given and name.startswith(given)]
+    close = begun if len(begun) == 1 else difflib.get_close_matches(given, valid, n=1, cutoff=0.7)
     return f"; did you mean {close[0]}?" if close else ""
 
 

@@ -9,7 +9,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from train.config.checks import unknown_choice
+from train.config.checks import did_you_mean, unknown_choice
 
 BUDGETS = ("smoke", "quick", "paper")
 """Budget names, cheapest first."""
@@ -112,8 +112,10 @@ class Experiment:
         known = [c.name for c in self.conditions[task]]
         unknown = [n for n in names if n not in known]
         if unknown:
+            hint = did_you_mean(unknown[0], known)
+            listed = f" (its conditions: {', '.join(known)})" if hint else f"; its conditions are: {', '.join(known)}"
             raise ValueError(f"experiment {self.name!r} has no condition(s) {', '.join(unknown)} for task "
-                             f"{task!r}; its conditions are: {', '.join(known)}")
+                             f"{task!r}{hint}{listed}")
         return [c for c in self.conditions[task] if c.name in names]
 
     def describe(self) -> dict[str, Any]:

@@ -85,8 +85,8 @@ def test_a_misspelt_flag_or_choice_is_named_by_its_subcommand_with_the_nearest_v
                         "paper; did you mean --budget?"),
                        (["train", "salad", "--zzz"], "ecorl train: error: unrecognized arguments: --zzz (see ecorl "
                         "train --help)"),
-                       (["trian"], "did you mean train?"), (["run", "headline", "--budget", "papr"],
-                                                            "did you mean paper?")):
+                       (["trian"], "did you mean train?"), (["merge"], "did you mean merge-seeds?"),
+                       (["run", "headline", "--budget", "papr"], "did you mean paper?")):
         with pytest.raises(SystemExit) as stop:
             main(argv)
         err = capsys.readouterr().err.strip()
@@ -94,6 +94,10 @@ def test_a_misspelt_flag_or_choice_is_named_by_its_subcommand_with_the_nearest_v
     with pytest.raises(SystemExit):
         main(["run", "headlin", "--dry-run"])
     assert "unknown experiment 'headlin'; did you mean headline?" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["run", "headline", "--condition", "statc-reset-free", "--dry-run"])
+    assert "statc-reset-free for task 'salad'; did you mean static-reset-free? (its conditions: " in \
+        capsys.readouterr().err
 
 
 def test_default_run_dir_names_the_condition():
