@@ -64,7 +64,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1, one core per seed)")
     parser.add_argument("--validate-every", type=int, default=None, metavar="EPOCHS",
                         help="validate every this many epochs instead of the script's (10); validation is about "
-                             "45 %% of a hunting run's time and does not train, but draws from Python's global "
+                             "30 %% of a hunting run's time and does not train, but draws from Python's global "
                              "random, as training's exploration does")
     parser.add_argument("--checkpoint-every", type=int, default=100, metavar="EPOCHS",
                         help="pickle the whole algorithm every this many epochs (0: never), so --resume continues")
