@@ -21,6 +21,13 @@ Each adjustment is import-time only and changes nothing the released code comput
    ``reset`` reads ``reset_hitting`` and fails without it. Environments unpickled here get each attribute they
    lack, with the value the released ``__init__`` gives it by default (`PICKLE_DEFAULTS`).
 
+6. ``FoodEnvBase.step`` appends a copy of the environment's whole observation-count dictionary every 120 steps
+   (for a mixing-time measure) and trims that list only when the run asks for mixing times, which none of the
+   released scripts run here does: in a 1.5 M-step non-episodic run the copies grow without bound (a hunting seed
+   past 10 GB by 1 500 epochs, more than a 24 GB machine can hold for two seeds). After each step the list is
+   trimmed to the entries the release ever reads (`trim_count_snapshots`): the last ``max_mixing_time_period + 1``,
+   which is the release's own rule when mixing times are asked for. Nothing trained or measured changes.
+
 Everything else the released code needs comes from the versions pinned in ``requirements.txt`` (gym 0.10.5,
 the version the released environment file names; NumPy 1.x, which the validation pickles and gym 0.10.5 need).
 """
@@ -39,6 +46,8 @@ ADJUSTMENTS = (
     "doodad (the EC2 launcher) replaced by modules with its two imported names; runs start in-process",
     "environments unpickled from the validation files get the bookkeeping attributes the released __init__ "
     "sets and the older pickles lack, at their __init__ defaults",
+    "the observation-count snapshots FoodEnvBase.step appends every 120 steps are trimmed to the last "
+    "max_mixing_time_period + 1 (all the release reads; it trims so itself when mixing times are measured)",
 )
 PICKLE_DEFAULTS = {
     "reset_hitting": lambda: True,
@@ -90,7 +99,7 @@ def check_checkout(checkout: Path) -> Path:
 
 
 def install(checkout: Path) -> None:
-    """Put the released checkout at ``checkout`` on the path with the three adjustments above."""
+    """Put the released checkout at ``checkout`` on the path with the adjustments above."""
     checkout = check_checkout(checkout)
     import torch  # noqa: F401  (before the Qt stand-ins, so torch's own imports never see them)
 
@@ -116,6 +125,7 @@ def install(checkout: Path) -> None:
     sys.modules["gym_minigrid.envs"] = _package("rlkit.envs.gym_minigrid.gym_minigrid.envs",
                                                 base / "gym_minigrid" / "envs")
     _complete_unpickled_envs()
+    trim_count_snapshots()
 
 
 def _complete_unpickled_envs() -> None:
@@ -129,3 +139,19 @@ def _complete_unpickled_envs() -> None:
                 setattr(self, name, default())
 
     FoodEnvBase.__setstate__ = __setstate__
+
+
+def trim_count_snapshots() -> None:
+    """After each step keep only the observation-count snapshots the release reads (adjustment 6)."""
+    from rlkit.envs.gym_minigrid.gym_minigrid.envs.getfood_base import FoodEnvBase
+
+    original = FoodEnvBase.step
+
+    def step(self, *args, **kwargs):
+        result = original(self, *args, **kwargs)
+        keep = getattr(self, "max_mixing_time_period", 0) + 1
+        if len(self.obs_counts) > keep:
+            del self.obs_counts[:-keep]
+        return result
+
+    FoodEnvBase.step = step
