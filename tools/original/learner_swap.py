@@ -39,7 +39,7 @@ ROOT = Path(__file__).resolve().parents[2]
 WARMUP, EPOCH, BATCH = 200, 500, 64
 """The released lifetime loop's (and ecorl's) steps before training, steps and updates per epoch, batch size."""
 PROBE_EVERY, REPORT_EVERY = 250, 5_000
-RELEASED_VARIANT = ROOT / "docs/results/original/hunting-fig4/dynamic-reset-free-waypoint/seed0/variant.json"
+RELEASED_VARIANT = ROOT / "docs/results/original/hunting-fig4/dynamic-reset-free-waypoint-first/seed0/variant.json"
 ECORL_TO_RELEASED_CHANNEL = {0: 0, 1: 1, 2: 6, 3: 5, 4: 2}
 """ecorl's hunting view channels (empty, wall, axe, deer, food) as the released type indices (empty 0, wall 1,
 food 2, wood 3, metal 4, deer 5, axe 6, monster 7)."""
