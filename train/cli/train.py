@@ -11,9 +11,8 @@ from typing import Any
 from train.cli.common import check_out_dir, user_errors
 from train.cli.flags import add_config_arguments, flag, given_settings, in_flags, shown
 from train.config import SECTIONS, TrainConfig, _jsonable
-from train.config.checks import unknown_choice
 from train.experiments.choices import TUNED
-from train.tasks import TASKS
+from train.tasks import TASKS, get_task
 
 
 def resume_config(out: Path, task: str, given: dict[str, Any]) -> TrainConfig:
@@ -60,10 +59,11 @@ def tuned_settings(task: str, given: dict[str, Any]) -> dict[str, Any]:
 
 
 def _task_name(text: str) -> str:
-    """Validate the task argument with a message that lists the choices."""
-    if text not in TASKS:
-        raise argparse.ArgumentTypeError(str(unknown_choice("task", text, TASKS)))
-    return text
+    """Validate the task argument with `get_task`'s message (the nearest task, then the choices)."""
+    try:
+        return get_task(text).name
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:

@@ -61,10 +61,12 @@ def check_kwargs(name: str, kwargs: Any, owned: Mapping[str, str]) -> None:
         raise ValueError(f"{name} may not set {taken[0]!r}: the config owns it ({owned[taken[0]]})")
 
 
-def did_you_mean(given: str, valid: Iterable[str]) -> str:
+def did_you_mean(given: Any, valid: Iterable[str]) -> str:
     """``'; did you mean X?'`` for the valid name closest to ``given`` (the one it begins, where only one does),
-    or '' when none is close.
+    or '' when none is close or ``given`` is not a string.
     """
+    if not isinstance(given, str):
+        return ""
     valid = list(valid)
     begun = [name for name in valid if given and name.startswith(given)]
     close = begun if len(begun) == 1 else difflib.get_close_matches(given, valid, n=1, cutoff=0.7)
@@ -76,7 +78,7 @@ def unknown_choice(kind: str, value: Any, choices: Iterable[str]) -> ValueError:
     nearest choice, then lists them all.
     """
     choices = list(choices)
-    hint = did_you_mean(value, choices) if isinstance(value, str) else ""
+    hint = did_you_mean(value, choices)
     return ValueError(f"unknown {kind} {value!r}{hint} (choose one of {', '.join(choices)})" if hint
                       else f"unknown {kind} {value!r}; choose one of {', '.join(choices)}")
 
@@ -87,5 +89,5 @@ def check_choices(section: Any) -> None:
         choices = f.metadata.get("choices")
         if choices and getattr(section, f.name) not in choices:
             value = getattr(section, f.name)
-            hint = did_you_mean(value, choices) if isinstance(value, str) else ""
-            raise ValueError(f"{f.name} must be one of {', '.join(choices)}, got {value!r}{hint}")
+            raise ValueError(f"{f.name} must be one of {', '.join(choices)}, got {value!r}"
+                             f"{did_you_mean(value, choices)}")
