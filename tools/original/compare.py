@@ -3,7 +3,11 @@ r"""The released code's runs (`run_released.py`) beside an ecorl run of the same
 For each step asked for, the evaluation nearest to it (within 2 500 steps) of every seed of each side: validation
 success (mean [min, max]), the largest |Q| of the validation rollouts (median [min, max], seeds above 10^3), the
 released trainer's batch statistic `Y Predictions Max` where there is one, and the greedy top-action share
-(median; seeds above the collapse threshold 0.6)::
+(median; seeds above the collapse threshold 0.6). A last row counts, at the last step asked for, by the rules of
+ecorl's reports: mean success [95 % bootstrap CI], seeds learned (above 20 %), seeds whose largest |Q| passed
+200 / (1 - 0.99) = 20 000 at any validation up to there (the |Q| half of ecorl's divergence rule, the half both
+codes measure alike; ecorl's reports also count a TD loss above 1 000) and seeds collapsed (top-action share above
+0.6)::
 
     python tools/original/compare.py docs/results/original/hunting-fig4/dynamic-reset-free-waypoint \
         docs/results/paper/dynamism-waypoint/hunting/dynamic-reset-free --at 50000 100000 300000
@@ -19,14 +23,20 @@ import math
 import statistics
 from pathlib import Path
 
+import numpy as np
+
+from train.experiments.report.stats import COLLAPSE_SHARE, LEARNED, bootstrap_ci, q_bound
+
 MATCH = 2_500
 """The largest distance between a step asked for and the evaluation that stands for it."""
 BLOWN = 1e3
 """|Q| above which a seed's values count as blown up in the table."""
 Q = "max \\|Q\\|"
 """How a cell names the largest |Q| (its bars escaped for a markdown table)."""
-COLLAPSE = 0.6
-"""Top-action share above which a seed counts as collapsed (ecorl's COLLAPSE_SHARE)."""
+COLLAPSE = COLLAPSE_SHARE
+"""Top-action share above which a seed counts as collapsed (ecorl's)."""
+GAMMA = 0.99
+"""The discount of every run compared here (both codes' hunting and factory settings)."""
 
 
 def released_seeds(folder: Path) -> dict[str, list[dict[str, float]]]:
@@ -76,6 +86,23 @@ def summary(seeds: dict[str, list[dict[str, float]]], step: int) -> str:
     return "; ".join(parts)
 
 
+def verdict(seeds: dict[str, list[dict[str, float]]], step: int) -> str:
+    """The last row's cell: the seeds evaluated near ``step`` counted by ecorl's report rules (module docstring)."""
+    evaluated = {name: at(rows, step) for name, rows in seeds.items()}
+    names = [name for name, row in evaluated.items() if row is not None]
+    if not names:
+        return "—"
+    success = np.array([evaluated[name]["success"] for name in names])
+    mean, low, high = bootstrap_ci(success)
+    bound = q_bound(GAMMA)
+    diverged = sum(any(not (r["max_q"] <= bound) for r in seeds[name] if r["step"] <= evaluated[name]["step"])
+                   for name in names)
+    shares = [evaluated[name].get("top_action_share", math.nan) for name in names]
+    collapsed = f"{sum(s > COLLAPSE for s in shares)}" if all(math.isfinite(s) for s in shares) else "—"
+    return (f"n={len(names)}; {mean:.1%} [{low:.1%}, {high:.1%}]; learned {int((success > LEARNED).sum())}; "
+            f"{Q} past {bound:,.0f} {diverged}; collapsed {collapsed}")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Print the table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -89,6 +116,8 @@ def main(argv: list[str] | None = None) -> None:
     print("|---|" + "---|" * len(sides))
     for step in args.at:
         print(f"| {step:,} | " + " | ".join(summary(seeds, step) for _, seeds in sides) + " |")
+    last = args.at[-1]
+    print(f"| {last:,}, by ecorl's report rules | " + " | ".join(verdict(seeds, last) for _, seeds in sides) + " |")
 
 
 if __name__ == "__main__":
