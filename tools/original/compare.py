@@ -6,8 +6,9 @@ released trainer's batch statistic `Y Predictions Max` where there is one, and t
 (median; seeds above the collapse threshold 0.6). A last row counts, at the last step asked for, by the rules of
 ecorl's reports: mean success [95 % bootstrap CI], seeds learned (above 20 %), seeds whose largest |Q| passed
 200 / (1 - 0.99) = 20 000 at any validation up to there (the |Q| half of ecorl's divergence rule, the half both
-codes measure alike; ecorl's reports also count a TD loss above 1 000) and seeds collapsed (top-action share above
-0.6)::
+codes measure alike; ecorl's reports also count a TD loss above 1 000; ``--reward-bound`` raises the 200 for a task
+that pays more a step, e.g. 10 100 for the released factory ladder's 10 000 delivery) and seeds collapsed
+(top-action share above 0.6)::
 
     python tools/original/compare.py docs/results/original/hunting-fig4/dynamic-reset-free-waypoint \
         docs/results/paper/dynamism-waypoint/hunting/dynamic-reset-free --at 50000 100000 300000
@@ -25,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from train.experiments.report.stats import COLLAPSE_SHARE, LEARNED, bootstrap_ci, q_bound
+from train.experiments.report.stats import COLLAPSE_SHARE, LEARNED, REWARD_BOUND, bootstrap_ci, q_bound
 
 MATCH = 2_500
 """The largest distance between a step asked for and the evaluation that stands for it."""
@@ -86,15 +87,17 @@ def summary(seeds: dict[str, list[dict[str, float]]], step: int) -> str:
     return "; ".join(parts)
 
 
-def verdict(seeds: dict[str, list[dict[str, float]]], step: int) -> str:
-    """The last row's cell: the seeds evaluated near ``step`` counted by ecorl's report rules (module docstring)."""
+def verdict(seeds: dict[str, list[dict[str, float]]], step: int, reward_bound: float = REWARD_BOUND) -> str:
+    """The last row's cell: the seeds evaluated near ``step`` counted by ecorl's report rules (module docstring);
+    ``reward_bound``: the task's largest per-step |reward| (as in ecorl's `blown`).
+    """
     evaluated = {name: at(rows, step) for name, rows in seeds.items()}
     names = [name for name, row in evaluated.items() if row is not None]
     if not names:
         return "—"
     success = np.array([evaluated[name]["success"] for name in names])
     mean, low, high = bootstrap_ci(success)
-    bound = q_bound(GAMMA)
+    bound = q_bound(GAMMA, max(reward_bound, REWARD_BOUND))
     diverged = sum(any(not (r["max_q"] <= bound) for r in seeds[name] if r["step"] <= evaluated[name]["step"])
                    for name in names)
     shares = [evaluated[name].get("top_action_share", math.nan) for name in names]
@@ -109,6 +112,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("released", type=Path, help="a folder of released runs, seed<N>/metrics.csv")
     parser.add_argument("ecorl", type=Path, nargs="+", help="ecorl run directories of the same condition")
     parser.add_argument("--at", type=int, nargs="+", required=True, help="steps to compare at")
+    parser.add_argument("--reward-bound", type=float, default=REWARD_BOUND,
+                        help=f"the task's largest per-step |reward| for the |Q| bound of the last row (default "
+                             f"{REWARD_BOUND:g}; the released factory ladder: 10100)")
     args = parser.parse_args(argv)
     sides = [(f"released ({args.released.as_posix()})", released_seeds(args.released))]
     sides += [(f"ecorl ({path.as_posix()})", ecorl_seeds(path)) for path in args.ecorl]
@@ -117,7 +123,8 @@ def main(argv: list[str] | None = None) -> None:
     for step in args.at:
         print(f"| {step:,} | " + " | ".join(summary(seeds, step) for _, seeds in sides) + " |")
     last = args.at[-1]
-    print(f"| {last:,}, by ecorl's report rules | " + " | ".join(verdict(seeds, last) for _, seeds in sides) + " |")
+    cells = [verdict(seeds, last, args.reward_bound) for _, seeds in sides]
+    print(f"| {last:,}, by ecorl's report rules | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":
