@@ -26,7 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from train.experiments.report.stats import COLLAPSE_SHARE, LEARNED, REWARD_BOUND, bootstrap_ci, q_bound
+from train.experiments.report.stats import (
+    COLLAPSE_SHARE,
+    LEARNED,
+    REWARD_BOUND,
+    blown,
+    bootstrap_ci,
+    collapsed,
+    q_bound,
+)
 
 MATCH = 2_500
 """The largest distance between a step asked for and the evaluation that stands for it."""
@@ -97,13 +105,13 @@ def verdict(seeds: dict[str, list[dict[str, float]]], step: int, reward_bound: f
         return "—"
     success = np.array([evaluated[name]["success"] for name in names])
     mean, low, high = bootstrap_ci(success)
-    bound = q_bound(GAMMA, max(reward_bound, REWARD_BOUND))
-    diverged = sum(any(not (r["max_q"] <= bound) for r in seeds[name] if r["step"] <= evaluated[name]["step"])
-                   for name in names)
-    shares = [evaluated[name].get("top_action_share", math.nan) for name in names]
-    collapsed = f"{sum(s > COLLAPSE for s in shares)}" if all(math.isfinite(s) for s in shares) else "—"
+    diverged = sum(bool(blown(math.nan, [r["max_q"] for r in seeds[name] if r["step"] <= evaluated[name]["step"]],
+                              GAMMA, reward_bound).any()) for name in names)  # a NaN loss: the |Q| half alone
+    shares = np.array([evaluated[name].get("top_action_share", math.nan) for name in names])
+    fell = f"{int(collapsed(shares).sum())}" if np.isfinite(shares).all() else "—"
+    bound = q_bound(GAMMA, max(reward_bound, REWARD_BOUND))  # the bound `blown` applies, for the label
     return (f"n={len(names)}; {mean:.1%} [{low:.1%}, {high:.1%}]; learned {int((success > LEARNED).sum())}; "
-            f"{Q} past {bound:,.0f} {diverged}; collapsed {collapsed}")
+            f"{Q} past {bound:,.0f} {diverged}; collapsed {fell}")
 
 
 def main(argv: list[str] | None = None) -> None:
