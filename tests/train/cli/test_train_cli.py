@@ -66,6 +66,13 @@ def test_unknown_task_lists_the_choices(capsys):
     assert "unknown task 'pacman'" in err and "salad, hunting, scavenging, factory, walled-salad, foodcollector" in err
 
 
+def test_a_misspelt_task_names_the_nearest_one(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "salda"])
+    assert exit_info.value.code == 2
+    assert "unknown task 'salda'; did you mean salad? (choose one of salad, hunting" in capsys.readouterr().err
+
+
 def test_invalid_values_are_reported(capsys):
     with pytest.raises(SystemExit):
         main(["train", "salad", "--reward", "dense"])
@@ -149,3 +156,14 @@ def test_a_config_built_in_python_names_the_nearest_choice_for_a_misspelt_one():
         TrainConfig(env=EnvConfig(reward="waypont"))
     with pytest.raises(ValueError, match=r"^unknown budget 'huge'; choose one of smoke, "):
         get_experiment("dynamism").budget("huge")
+
+
+def test_a_value_of_the_wrong_type_gets_the_choices_without_a_hint():
+    from train.config import DQNConfig, EnvConfig
+
+    with pytest.raises(ValueError, match=r"^unknown reward mode 3; choose one of sparse, waypoint, "):
+        TrainConfig(env=EnvConfig(reward=3))
+    with pytest.raises(ValueError, match=r"^init must be one of rlkit, torch, got 7$"):
+        TrainConfig(dqn=DQNConfig(init=7))
+    with pytest.raises(ValueError, match=r"^init must be one of rlkit, torch, got 'rlkt'; did you mean rlkit\?$"):
+        TrainConfig(dqn=DQNConfig(init="rlkt"))
