@@ -75,12 +75,15 @@ def did_you_mean(given: Any, valid: Iterable[str]) -> str:
 
 def unknown_choice(kind: str, value: Any, choices: Iterable[str]) -> ValueError:
     """The one-line error for a ``kind`` (task, experiment, budget, ...) that is none of ``choices``: it names the
-    nearest choice, then lists them all.
+    nearest choice, then lists them all. ``value`` may be a list of several unknown names (the hint is for the first).
     """
     choices = list(choices)
-    hint = did_you_mean(value, choices)
-    return ValueError(f"unknown {kind} {value!r}{hint} (choose one of {', '.join(choices)})" if hint
-                      else f"unknown {kind} {value!r}; choose one of {', '.join(choices)}")
+    several = isinstance(value, list)
+    named = ", ".join(map(repr, value)) if several else repr(value)
+    kinds = f"{kind}s" if several and len(value) > 1 else kind
+    hint = did_you_mean(value[0] if several and value else value, choices)
+    return ValueError(f"unknown {kinds} {named}{hint} (choose one of {', '.join(choices)})" if hint
+                      else f"unknown {kinds} {named}; choose one of {', '.join(choices)}")
 
 
 def check_choices(section: Any) -> None:

@@ -9,7 +9,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from train.config.checks import did_you_mean, unknown_choice
+from train.config.checks import unknown_choice
 
 BUDGETS = ("smoke", "quick", "paper")
 """Budget names, cheapest first."""
@@ -101,8 +101,7 @@ class Experiment:
             return self.tasks
         unknown = [t for t in tasks if t not in self.conditions]
         if unknown:
-            raise ValueError(f"experiment {self.name!r} has no task(s) {', '.join(unknown)}; "
-                             f"its tasks are: {', '.join(self.tasks)}")
+            raise unknown_choice(f"{self.name} task", unknown, self.tasks)
         return tuple(t for t in self.tasks if t in tasks)
 
     def select_conditions(self, task: str, names: Sequence[str] | None) -> list[Condition]:
@@ -112,10 +111,7 @@ class Experiment:
         known = [c.name for c in self.conditions[task]]
         unknown = [n for n in names if n not in known]
         if unknown:
-            hint = did_you_mean(unknown[0], known)
-            listed = f" (its conditions: {', '.join(known)})" if hint else f"; its conditions are: {', '.join(known)}"
-            raise ValueError(f"experiment {self.name!r} has no condition(s) {', '.join(unknown)} for task "
-                             f"{task!r}{hint}{listed}")
+            raise unknown_choice(f"{self.name}/{task} condition", unknown, known)
         return [c for c in self.conditions[task] if c.name in names]
 
     def describe(self) -> dict[str, Any]:

@@ -252,7 +252,7 @@ def test_run_condition_subset(capsys, tmp_path):
         "headline/salad/static-episodic", "headline/salad/dynamic-reset-free"]  # panel order, not argument order
     with pytest.raises(SystemExit):
         cli.main(["run", "headline", "--condition", "dynamic", "--dry-run", "--out", str(tmp_path)])
-    assert "its conditions are: static-episodic" in capsys.readouterr().err
+    assert "unknown headline/salad condition 'dynamic'; choose one of static-episodic" in capsys.readouterr().err
 
 
 def test_an_unfinished_sweep_names_each_run_and_why():

@@ -103,7 +103,15 @@ def test_a_misspelt_flag_or_choice_is_named_by_its_subcommand_with_the_nearest_v
     assert "unknown experiment 'headlin'; did you mean headline?" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["run", "headline", "--condition", "statc-reset-free", "--dry-run"])
-    assert "statc-reset-free for task 'salad'; did you mean static-reset-free? (its conditions: " in \
+    assert "unknown headline/salad condition 'statc-reset-free'; did you mean static-reset-free? (choose one of " \
+        "static-episodic, " in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["run", "headline", "--condition", "statc-reset-free", "zzz", "--dry-run"])
+    assert "unknown headline/salad conditions 'statc-reset-free', 'zzz'; did you mean static-reset-free?" in \
+        capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["run", "shaping", "--task", "hunitng", "--dry-run"])
+    assert "unknown shaping task 'hunitng'; did you mean hunting? (choose one of " in \
         capsys.readouterr().err
 
 
