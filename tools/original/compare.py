@@ -1,17 +1,20 @@
 r"""The released code's runs (`run_released.py`) beside an ecorl run of the same condition, at matched steps.
 
 For each step asked for, the evaluation nearest to it (within 2 500 steps) of every seed of each side: validation
-success (mean [min, max]), the largest |Q| of the validation rollouts (median [min, max], seeds above 10^3), the
-released trainer's batch statistic `Y Predictions Max` where there is one, and the greedy top-action share
-(median; seeds above the collapse threshold 0.6). A last row counts, at the last step asked for, by the rules of
-ecorl's reports: mean success [95 % bootstrap CI], seeds learned (above 20 %), seeds whose largest |Q| passed
-200 / (1 - 0.99) = 20 000 at any validation up to there (the |Q| half of ecorl's divergence rule, the half both
-codes measure alike; ecorl's reports also count a TD loss above 1 000; ``--reward-bound`` raises the 200 for a task
-that pays more a step, e.g. 10 100 for the released factory ladder's 10 000 delivery) and seeds collapsed
-(top-action share above 0.6)::
+success (mean [min, max]) and, with ``--axe`` (factory), the share of validation layouts where an axe was made
+(the released runs' ``made_axe``, ecorl's ``made``), the largest |Q| of the validation rollouts (median [min, max],
+seeds above 10^3, scaled with ``--reward-bound``), the released trainer's batch statistic `Y Predictions Max` where
+there is one, and the greedy top-action share (median; seeds above the collapse threshold 0.6). A last row counts,
+at the last step asked for, by the rules of ecorl's reports: mean success [95 % bootstrap CI], seeds learned (above
+20 %), seeds whose largest |Q| passed 200 / (1 - 0.99) = 20 000 at any validation up to there (the |Q| half of
+ecorl's divergence rule, the half both codes measure alike; ecorl's reports also count a TD loss above 1 000;
+``--reward-bound`` raises the 200 for a task that pays more a step, e.g. 10 100 for the released factory ladder's
+10 000 delivery) and seeds collapsed (top-action share above 0.6)::
 
     python tools/original/compare.py docs/results/original/hunting-fig4/dynamic-reset-free-waypoint \
         docs/results/paper/dynamism-waypoint/hunting/dynamic-reset-free --at 50000 100000 300000
+    python tools/original/compare.py docs/results/original/factory-fig4/dynamic-reset-free-waypoint \
+        docs/results/paper/factory-released/factory/dynamic-reset-free --at 250000 1250000 --reward-bound 10100 --axe
 
 The first directory holds one ``seed<N>/metrics.csv`` per released seed; the others are ecorl run directories.
 """
@@ -39,7 +42,7 @@ from train.experiments.report.stats import (
 MATCH = 2_500
 """The largest distance between a step asked for and the evaluation that stands for it."""
 BLOWN = 1e3
-"""|Q| above which a seed's values count as blown up in the table."""
+"""|Q| above which a seed's values count as blown up in the table (for the default reward bound: five times it)."""
 Q = "max \\|Q\\|"
 """How a cell names the largest |Q| (its bars escaped for a markdown table)."""
 COLLAPSE = COLLAPSE_SHARE
@@ -76,17 +79,28 @@ def at(rows: list[dict[str, float]], step: int) -> dict[str, float] | None:
     return best if best is not None and abs(best["step"] - step) <= MATCH else None
 
 
-def summary(seeds: dict[str, list[dict[str, float]]], step: int) -> str:
-    """One table cell: the seeds' evaluations nearest to ``step``."""
+def axe_made(row: dict[str, float]) -> float:
+    """The share of validation layouts where an axe was made: ``made_axe`` in a released run, ``made`` in ecorl's."""
+    return row["made_axe"] if "made_axe" in row else row["made"]
+
+
+def summary(seeds: dict[str, list[dict[str, float]]], step: int, reward_bound: float = REWARD_BOUND,
+            axe: bool = False) -> str:
+    """One table cell: the seeds' evaluations nearest to ``step``; |Q| counts as blown up above `BLOWN` scaled by
+    ``reward_bound`` (the task's largest per-step |reward|) over hunting's; ``axe``: add the axe-made share.
+    """
+    blown_at = BLOWN * max(reward_bound, REWARD_BOUND) / REWARD_BOUND
     rows = [r for r in (at(v, step) for v in seeds.values()) if r is not None]
     if not rows:
         return "—"
     success = [r["success"] for r in rows]
     q = [r["max_q"] for r in rows]
     finite = [v for v in q if math.isfinite(v)]
-    parts = [f"n={len(rows)}", f"success {statistics.mean(success):.1%} [{min(success):.0%}, {max(success):.0%}]",
-             f"{Q} {statistics.median(finite):.3g} [{min(finite):.3g}, {max(finite):.3g}]" if finite else f"{Q} —",
-             f"{sum(not (v <= BLOWN) for v in q)} above {BLOWN:g}"]
+    parts = [f"n={len(rows)}", f"success {statistics.mean(success):.1%} [{min(success):.0%}, {max(success):.0%}]"]
+    if axe:
+        parts.append(f"axe made {statistics.mean(axe_made(r) for r in rows):.1%}")
+    parts += [f"{Q} {statistics.median(finite):.3g} [{min(finite):.3g}, {max(finite):.3g}]" if finite else f"{Q} —",
+              f"{sum(not (v <= blown_at) for v in q)} above {blown_at:g}"]
     if all("y_pred_max" in r for r in rows):
         parts.append(f"batch Q(s,a) max {statistics.median(r['y_pred_max'] for r in rows):.3g}")
     if all("top_action_share" in r and math.isfinite(r["top_action_share"]) for r in rows):
@@ -123,13 +137,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--reward-bound", type=float, default=REWARD_BOUND,
                         help=f"the task's largest per-step |reward| for the |Q| bound of the last row (default "
                              f"{REWARD_BOUND:g}; the released factory ladder: 10100)")
+    parser.add_argument("--axe", action="store_true", help="add the share of validation layouts where an axe was "
+                                                           "made (factory)")
     args = parser.parse_args(argv)
     sides = [(f"released ({args.released.as_posix()})", released_seeds(args.released))]
     sides += [(f"ecorl ({path.as_posix()})", ecorl_seeds(path)) for path in args.ecorl]
     print("| step | " + " | ".join(name for name, _ in sides) + " |")
     print("|---|" + "---|" * len(sides))
     for step in args.at:
-        print(f"| {step:,} | " + " | ".join(summary(seeds, step) for _, seeds in sides) + " |")
+        cells = [summary(seeds, step, args.reward_bound, args.axe) for _, seeds in sides]
+        print(f"| {step:,} | " + " | ".join(cells) + " |")
     last = args.at[-1]
     cells = [verdict(seeds, last, args.reward_bound) for _, seeds in sides]
     print(f"| {last:,}, by ecorl's report rules | " + " | ".join(cells) + " |")
