@@ -62,7 +62,7 @@ def test_unknown_names_are_explained():
         get_experiment("nope")
     with pytest.raises(ValueError, match="choose one of"):
         get_experiment("dynamism").budget("huge")
-    with pytest.raises(ValueError, match="its tasks are"):
+    with pytest.raises(ValueError, match="unknown rnd task .salad.; choose one of factory"):
         get_experiment("rnd").select_tasks(["salad"])
 
 
