@@ -14,7 +14,7 @@ ecorl's divergence rule, the half both codes measure alike; ecorl's reports also
     python tools/original/compare.py docs/results/original/hunting-fig4/dynamic-reset-free-waypoint \
         docs/results/paper/dynamism-waypoint/hunting/dynamic-reset-free --at 50000 100000 300000
     python tools/original/compare.py docs/results/original/factory-fig4/dynamic-reset-free-waypoint \
-        docs/results/paper/factory-released/factory/dynamic-reset-free --at 250000 1250000 --reward-bound 10100 --axe
+        docs/results/paper/factory-released/factory/dynamic-reset-free --at 250000 1225000 --reward-bound 10100 --axe
 
 The first directory holds one ``seed<N>/metrics.csv`` per released seed; the others are ecorl run directories.
 """
@@ -80,8 +80,10 @@ def at(rows: list[dict[str, float]], step: int) -> dict[str, float] | None:
 
 
 def axe_made(row: dict[str, float]) -> float:
-    """The share of validation layouts where an axe was made: ``made_axe`` in a released run, ``made`` in ecorl's."""
-    return row["made_axe"] if "made_axe" in row else row["made"]
+    """The share of validation layouts where an axe was made: ``made_axe`` in a released run, ``made`` in ecorl's
+    (NaN in an ecorl file written before the column).
+    """
+    return row.get("made_axe", row.get("made", math.nan))
 
 
 def summary(seeds: dict[str, list[dict[str, float]]], step: int, reward_bound: float = REWARD_BOUND,
