@@ -19,10 +19,10 @@ import gzip
 import io
 from pathlib import Path
 
+from compare import at  # the nearest evaluation within 2 500 steps, as compare.py matches steps
+
 KEYS = ("pickup_axe", "made_axe", "made_lava")
 """The counters shown by default: factory's axes picked up, axes made, deliveries."""
-MATCH = 2_500
-"""The largest distance between a step asked for and the epoch that stands for it."""
 
 
 def read_progress(path: Path) -> list[dict[str, str]]:
@@ -42,11 +42,10 @@ def epochs(seed_dir: Path) -> list[dict[str, str]]:
 
 
 def count_at(rows: list[dict[str, str]], step: int, key: str) -> float | None:
-    """The counter ``key`` in the epoch nearest ``step`` (within `MATCH`), else None."""
-    best = min(rows, key=lambda r: abs(float(r["evaluation/num steps total"]) - step), default=None)
-    if best is None or abs(float(best["evaluation/num steps total"]) - step) > MATCH:
-        return None
-    return float(best[f"evaluation/env_infos/{key} Mean"])
+    """The counter ``key`` in the epoch nearest ``step`` (compare.py's `at`), else None."""
+    steps = [{"step": float(r["evaluation/num steps total"]), "row": r} for r in rows]
+    best = at(steps, step)
+    return None if best is None else float(best["row"][f"evaluation/env_infos/{key} Mean"])
 
 
 def main(argv: list[str] | None = None) -> None:
