@@ -5,6 +5,7 @@ and ``...report.corners`` (time spent in the grid's corners, and how evenly the 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,3 +85,19 @@ def test_the_collapse_tool_reads_exported_policies_and_the_late_corner_visits(tm
     assert table[2].count("collapsed") == 2  # each policy is judged, whichever way
     assert action_name(7, 2) == "north" and action_name(27, 9 + 3 + 2) == "forward +, strafe +, turn -"
     assert main([str(tmp_path / "nothing")]) == 1
+
+
+def test_collapse_md_lists_exactly_the_shipped_runs_its_command_measures(monkeypatch):
+    """collapse.md's table re-derives from its command: every shipped run trained before the collapse columns,
+    in the command's order, and none of the later ones (their reports count collapse).
+    """
+    from train.experiments.report.collapse import records_collapse, run_dirs_of
+
+    root = Path(__file__).resolve().parents[3]
+    monkeypatch.chdir(root)  # the table names the runs by their paths from the repository's root
+    rows = [line.split("|")[1].strip() for line in Path("docs/results/paper/collapse.md").read_text().splitlines()
+            if line.startswith("| docs/")]
+    measured = run_dirs_of(Path("docs/results/paper"))
+    assert rows == [run.as_posix() for run in measured]
+    assert not any(records_collapse(run) for run in measured)
+    assert records_collapse(Path("docs/results/paper/factory-released/factory/dynamic-reset-free"))

@@ -8,7 +8,8 @@ last two visitation snapshots that fell on the four corner cells inside the wall
 
     python -m train.experiments.report.collapse docs/results/paper/dynamism [RUN_OR_EXPERIMENT_DIR ...]
 
-Runs trained since the collapse columns existed record all of this at every evaluation (metrics.csv).
+Runs trained since the collapse columns existed record all of this at every evaluation (metrics.csv), so an
+experiment directory's conditions among them are left out; name such a run's own directory to measure it anyway.
 """
 
 from __future__ import annotations
@@ -81,18 +82,27 @@ def _task(run_dir: Path) -> str:
     return str(load_json(run_dir / "config.json")["env"]["task"])
 
 
+def records_collapse(run_dir: Path) -> bool:
+    """Whether the run's metrics.csv has the collapse columns (so its own report counts collapse)."""
+    with (run_dir / "metrics.csv").open() as f:
+        return "top_action_share" in f.readline().strip().split(",")
+
+
 def run_dirs_of(path: Path) -> list[Path]:
-    """The run directories of ``path``: itself when it is one, else every condition of its experiments."""
+    """The run directories of ``path``: itself when it is one, else every condition of its experiments that was
+    trained before the collapse columns (the later ones record collapse at every evaluation).
+    """
     if (path / "metrics.csv").is_file():
         return [path]
     found = []
     for exp_dir in find_experiment_dirs(path):
         info = trusted_info(exp_dir)
         for task, conditions in info.get("tasks", {}).items():
-            found += [exp_dir / task / c["name"] for c in conditions
-                      if not c.get("measure") and (exp_dir / task / c["name"] / "metrics.csv").is_file()]
+            runs = [exp_dir / task / c["name"] for c in conditions if not c.get("measure")]
+            found += [run for run in runs if (run / "metrics.csv").is_file() and not records_collapse(run)]
     if not found:
-        raise ValueError(f"{path} is neither a run directory (no metrics.csv) nor holds experiments with runs")
+        raise ValueError(f"{path} is neither a run directory (no metrics.csv) nor holds experiments with runs "
+                         "trained before the collapse columns (later runs' reports count collapse themselves)")
     return found
 
 
