@@ -188,7 +188,7 @@ def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, name
     if args.dry_run:
         _print_dry_run(train, args)
         for copy, original in copies:
-            print(f"[  copy] {copy.name}: the same run as {original.name}, copied when it finishes")
+            print(_copy_line(copy, original))
         return 0
     ran = sorted({job.experiment for job in jobs}, key=[e.name for e in exps].index)
     with user_errors(ValueError, OSError):
@@ -208,6 +208,16 @@ def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, name
     for name in ran:
         _finish(args.out / name, args.report)
     return 0
+
+
+def _copy_line(copy, original) -> str:
+    """The dry run's line for a condition that is another's copy: done, copied at once, or once it finishes."""
+    from train.experiments.jobs import job_is_done
+
+    if job_is_done(copy):
+        return f"[  done] {copy.name}: the same run as {original.name}, copied"
+    when = "finished: copied by this command" if job_is_done(original) else "copied when it finishes"
+    return f"[  copy] {copy.name}: the same run as {original.name}, {when}"
 
 
 def _all_finished(results: list) -> bool:

@@ -317,7 +317,7 @@ def _task_experiments() -> list[Experiment]:
             "with visitation heat-maps.",
             {"walled-salad": shaping_conditions("walled-salad", True, "-reset-free")
              + shaping_conditions("walled-salad", False, "-episodic")},
-            {"walled-salad": 1_000_000}, 3, {"smoke": SMOKE, "quick": quick(3, 100_000)}, heatmaps=True,
+            {"walled-salad": 1_000_000}, 10, {"smoke": SMOKE, "quick": quick(3, 100_000)}, heatmaps=True,
             panel_per_setting=True),
         Experiment(
             "measure", "Table 1", "What a random policy experiences",

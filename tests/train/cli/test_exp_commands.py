@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -119,6 +120,16 @@ def test_run_all_plans_every_training_experiment_and_each_copy_once(capsys, tmp_
     assert "--all runs every experiment that trains; drop the names" in capsys.readouterr().err
 
 
+
+def test_a_dry_run_says_whether_a_copy_is_there_or_copied_at_once(capsys):
+    shipped = str(Path(__file__).resolve().parents[3] / "docs" / "results" / "paper")
+    assert cli.main(["run", "headline", "dynamism-sweep", "dynamism", "--budget", "paper", "--task", "salad",
+                     "--condition", "static-reset-free", "p0", "--dry-run", "--out", shipped]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "[  done] dynamism-sweep/salad/p0: the same run as headline/salad/static-reset-free, copied" in lines
+    assert ("[  copy] dynamism/salad/static-reset-free: the same run as headline/salad/static-reset-free, finished: "
+            "copied by this command") in lines
+
 @pytest.mark.parametrize("bad", ["-1", "0", "nan", "inf"])
 def test_run_refuses_a_time_budget_that_is_no_time(bad, capsys, tmp_path):
     with pytest.raises(SystemExit):
@@ -187,7 +198,6 @@ def test_film_counts_whole_episodes_and_solved_ones():
 
 
 def test_a_film_cut_inside_an_episode_does_not_count_the_part_as_an_episode():
-    from pathlib import Path
 
     from train.experiments.video import Video
 
@@ -208,7 +218,6 @@ def test_a_film_starts_no_episode_past_its_frame_budget(max_frames, episodes, fr
 
 
 def test_a_default_film_keeps_to_the_frame_budget_and_asked_episodes_do_not(monkeypatch, tmp_path, capsys):
-    from pathlib import Path
 
     from foodcollector.params import UNITY_EPISODE_DECISIONS
     from train.experiments import video

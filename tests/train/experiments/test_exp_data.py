@@ -41,7 +41,7 @@ SPEC_TABLE = {  # name: (paper seeds, {task: steps}) from SPEC's experiment tabl
     "dynamism-sweep": (10, {"salad": 1_000_000, "hunting": 1_500_000}),
     "shaping": (10, dict.fromkeys(("salad", "hunting", "scavenging", "factory", "foodcollector"), 1_250_000)),
     "rnd": (10, {"factory": 1_250_000}),
-    "walls": (3, {"walled-salad": 1_000_000}),
+    "walls": (10, {"walled-salad": 1_000_000}),
     "measure": (25, dict.fromkeys(("factory", "salad", "hunting", "scavenging", "walled-salad"), 50_000)),
 }
 
