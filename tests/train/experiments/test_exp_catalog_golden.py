@@ -11,6 +11,7 @@ experiments (`train.experiments.released`) and factory's shipped subgoal-mode ar
 sentence; its entry was dumped again from its code, its two earlier arms' jobs checked unchanged first.
 ``factory-make-axe`` gained one arm, its dynamic non-episodic condition with the released network
 (``dynamic-reset-free-inv8``), and a sentence; dumped the same way, its nine earlier arms' jobs checked unchanged.
+``walls``' paper budget went from 3 seeds to the 10 its shipped runs have (its ten paper jobs' ``seeds`` edited).
 """
 
 from __future__ import annotations
