@@ -102,6 +102,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         exp = get_experiment(names[0])
     except ValueError as err:
         parser.error(str(err))
+    from train.experiments.multi import fill_copies
     from train.experiments.sweep import plan, write_experiment_file  # torch: seconds to import
 
     try:
@@ -115,20 +116,39 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
         jobs = timebox(jobs, args.minutes * 60 - (time.monotonic() - began), args.jobs or os.cpu_count() or 1,
                        lambda line: print(line, file=sys.stderr), asked_seconds=args.minutes * 60)
+    train, copies = _twins(exp, jobs, args)
     if args.dry_run:
-        _print_dry_run(jobs, args)
+        _print_dry_run(train, args)
+        for copy, original in copies:
+            print(_copy_line(copy, original))
         return 0
     with user_errors(ValueError, OSError):
         write_experiment_file(exp, args.budget, jobs, args.out)
     where = args.out / exp.name
     print(f"ecorl run {exp.name} ({exp.paper}): {len(jobs)} runs, budget {args.budget}, executor {args.executor}, "
           f"results in {where}", file=sys.stderr)
-    results = _execute(jobs, args, where)
+    with user_errors(OSError):
+        for line in fill_copies(copies):
+            print(line, file=sys.stderr)
+    results = _execute(train, args, where)
     if results is None:
         return 130
     if not _all_finished(results):
         return 1
     return _finish(where, args.report)
+
+
+def _twins(exp, jobs: list, args: argparse.Namespace) -> tuple[list, list]:
+    """(the jobs to train, (copy, original) pairs): a job that another experiment's finished run in --out already
+    made, the same settings, is copied from it (`train.experiments.multi.finished_twins`).
+    """
+    from train.experiments.multi import finished_twins
+
+    if args.first_seed or args.minutes is not None:  # parts of seeds, or steps sized to this machine: no twin
+        return jobs, []
+    others = [e for e in EXPERIMENTS.values() if e.name != exp.name and not e.is_measurement]
+    with user_errors(ValueError, OSError):
+        return finished_twins(jobs, others, args.budget, args.out, args.seeds, args.steps)
 
 
 def _check_out_and_device(args: argparse.Namespace) -> None:

@@ -21,7 +21,7 @@ from train.experiments.sweep import plan
 from train.storage.fileio import atomic_dir, is_temporary
 from train.storage.rundir import LOCK_NAME, RunDir
 
-__all__ = ["fill_copies", "plan_many", "split_copies"]
+__all__ = ["fill_copies", "finished_twins", "plan_many", "split_copies"]
 
 
 def plan_many(experiments: Sequence[Experiment], budget: str, out: str | Path, tasks: Sequence[str] | None = None,
@@ -90,3 +90,29 @@ def fill_copy(copy: Job, original: Job) -> str:
 def fill_copies(copies: Sequence[tuple[Job, Job]]) -> list[str]:
     """`fill_copy` for each pair; what happened to each."""
     return [fill_copy(copy, original) for copy, original in copies]
+
+
+def finished_twins(jobs: Sequence[Job], others: Sequence[Experiment], budget: str, out: str | Path,
+                   seeds: int | None = None, steps: int | None = None) -> tuple[list[Job], list[tuple[Job, Job]]]:
+    """(the jobs to train, (copy, original) pairs): a job not yet done whose settings equal a finished run of one of
+    ``others`` in ``out`` (the same budget and overrides) is copied from it instead of trained again, unless its own
+    folder already holds files (a run of its own, resumed as usual).
+    """
+    finished: dict[str, Job] = {}
+    for exp in others:
+        try:
+            planned = plan_many([exp], budget, out, seeds=seeds, steps=steps)
+        except ValueError:  # an experiment these overrides do not fit has no runs to share
+            continue
+        for job in planned:
+            if not job.is_measurement and job_is_done(job):
+                finished.setdefault(_identity(job), job)
+    train, copies = [], []
+    for job in jobs:
+        twin = None if job.is_measurement or job.restart or job_is_done(job) else finished.get(_identity(job))
+        folder = Path(job.run_dir)
+        if twin is not None and not (folder.exists() and any(folder.iterdir())):
+            copies.append((job, twin))
+        else:
+            train.append(job)
+    return train, copies

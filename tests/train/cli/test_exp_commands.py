@@ -130,6 +130,31 @@ def test_a_dry_run_says_whether_a_copy_is_there_or_copied_at_once(capsys):
     assert ("[  copy] dynamism/salad/static-reset-free: the same run as headline/salad/static-reset-free, finished: "
             "copied by this command") in lines
 
+
+def test_one_experiment_copies_a_finished_run_of_another_with_the_same_settings(capsys, tmp_path):
+    """`dynamism`'s static non-episodic salad is `headline`'s: run after it into the same --out, it is copied, not
+    trained again (the speed column would differ), and a condition with files of its own is left to train."""
+    one = ["--budget", "smoke", "--task", "salad", "--condition", "static-reset-free", "--out", str(tmp_path),
+           "--no-progress"]
+    assert cli.main(["run", "headline", *one]) == 0
+    capsys.readouterr()
+    assert cli.main(["run", "dynamism", *one, "--dry-run"]) == 0
+    assert capsys.readouterr().out.startswith("[  copy] dynamism/salad/static-reset-free: the same run as "
+                                              "headline/salad/static-reset-free, finished: copied by this command")
+    assert cli.main(["run", "dynamism", *one]) == 0
+    assert "dynamism/salad/static-reset-free: the same run as headline/salad/static-reset-free, copied" in \
+        capsys.readouterr().err
+    original, copy = (tmp_path / name / "salad" / "static-reset-free" for name in ("headline", "dynamism"))
+    assert (copy / "metrics.csv").read_bytes() == (original / "metrics.csv").read_bytes()
+    assert (copy / "done.json").is_file() and not list(copy.glob("checkpoint.*"))
+    assert cli.main(["run", "episodic-vs-reset-free", *one[:-1], "--restart", "static-reset-free", "--dry-run"]) == 0
+    assert capsys.readouterr().out.startswith("[restart] episodic-vs-reset-free/salad/static-reset-free")
+    own = tmp_path / "episodic-vs-reset-free" / "salad" / "static-reset-free"
+    own.mkdir(parents=True)
+    (own / "notes.txt").write_text("mine")
+    assert cli.main(["run", "episodic-vs-reset-free", *one, "--dry-run"]) == 0
+    assert capsys.readouterr().out.startswith("[   new] episodic-vs-reset-free/salad/static-reset-free")
+
 @pytest.mark.parametrize("bad", ["-1", "0", "nan", "inf"])
 def test_run_refuses_a_time_budget_that_is_no_time(bad, capsys, tmp_path):
     with pytest.raises(SystemExit):
