@@ -37,7 +37,7 @@ def test_the_census_counts_each_configuration_once_in_packs_one_process_can_trai
 def test_a_tiny_timing_projects_a_time(capsys):
     _bench().main(["--device", "cpu", "--max-k", "2", "--epochs", "1", "--tasks", "walled-salad"])
     out = capsys.readouterr().out
-    assert "| walled-salad | 10 | 30 | 1,000,200 | 30.0 | 2 |" in out
+    assert "| walled-salad | 10 | 100 | 1,000,200 | 100.0 | 2 |" in out
     assert "the whole paper, one pack after another on this cpu:" in out
 
 
