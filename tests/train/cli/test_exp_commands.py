@@ -120,7 +120,6 @@ def test_run_all_plans_every_training_experiment_and_each_copy_once(capsys, tmp_
     assert "--all runs every experiment that trains; drop the names" in capsys.readouterr().err
 
 
-
 def test_a_dry_run_says_whether_a_copy_is_there_or_copied_at_once(capsys):
     shipped = str(Path(__file__).resolve().parents[3] / "docs" / "results" / "paper")
     assert cli.main(["run", "headline", "dynamism-sweep", "dynamism", "--budget", "paper", "--task", "salad",
@@ -133,7 +132,8 @@ def test_a_dry_run_says_whether_a_copy_is_there_or_copied_at_once(capsys):
 
 def test_one_experiment_copies_a_finished_run_of_another_with_the_same_settings(capsys, tmp_path):
     """`dynamism`'s static non-episodic salad is `headline`'s: run after it into the same --out, it is copied, not
-    trained again (the speed column would differ), and a condition with files of its own is left to train."""
+    trained again (the speed column would differ), and a condition with files of its own is left to train.
+    """
     one = ["--budget", "smoke", "--task", "salad", "--condition", "static-reset-free", "--out", str(tmp_path),
            "--no-progress"]
     assert cli.main(["run", "headline", *one]) == 0
@@ -154,6 +154,7 @@ def test_one_experiment_copies_a_finished_run_of_another_with_the_same_settings(
     (own / "notes.txt").write_text("mine")
     assert cli.main(["run", "episodic-vs-reset-free", *one, "--dry-run"]) == 0
     assert capsys.readouterr().out.startswith("[   new] episodic-vs-reset-free/salad/static-reset-free")
+
 
 @pytest.mark.parametrize("bad", ["-1", "0", "nan", "inf"])
 def test_run_refuses_a_time_budget_that_is_no_time(bad, capsys, tmp_path):
@@ -223,7 +224,6 @@ def test_film_counts_whole_episodes_and_solved_ones():
 
 
 def test_a_film_cut_inside_an_episode_does_not_count_the_part_as_an_episode():
-
     from train.experiments.video import Video
 
     cut = Video(Path("v.mp4"), episodes=2, solved=1, total_return=1.0, metric="success", ended=1, steps=4)
@@ -243,7 +243,6 @@ def test_a_film_starts_no_episode_past_its_frame_budget(max_frames, episodes, fr
 
 
 def test_a_default_film_keeps_to_the_frame_budget_and_asked_episodes_do_not(monkeypatch, tmp_path, capsys):
-
     from foodcollector.params import UNITY_EPISODE_DECISIONS
     from train.experiments import video
 
