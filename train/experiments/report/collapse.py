@@ -19,9 +19,11 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
+
 from ecology import corner_cells, corner_share
 from train.experiments.report.figures import heatmap_snapshot_files
-from train.experiments.report.runs import find_experiment_dirs, trusted_info
+from train.experiments.report.runs import find_experiment_dirs, read_columns, trusted_info
 from train.experiments.report.stats import collapsed, summarize
 from train.storage.rundir import read_visits
 from train.storage.safeio import load_json
@@ -83,9 +85,11 @@ def _task(run_dir: Path) -> str:
 
 
 def records_collapse(run_dir: Path) -> bool:
-    """Whether the run's metrics.csv has the collapse columns (so its own report counts collapse)."""
-    with (run_dir / "metrics.csv").open() as f:
-        return "top_action_share" in f.readline().strip().split(",")
+    """Whether the run's metrics.csv records the greedy top-action share (so its own report counts collapse), read
+    as the report reads it (`runs.read_columns`: a column the file lacks or leaves empty is NaN).
+    """
+    _, _, (share,) = read_columns(run_dir / "metrics.csv", ("top_action_share",), missing=np.nan)
+    return bool(np.isfinite(share).any())
 
 
 def run_dirs_of(path: Path) -> list[Path]:
