@@ -286,6 +286,8 @@ class Trainer:
         SIGINT/SIGTERM stop the run cleanly at the end of the current epoch, with a checkpoint.
         Returns the (first) condition's metrics rows; every part's are in ``parts[i].metric_rows``.
         """
+        # The stop is read once per epoch, where the checkpoint is decided: a signal that lands after that
+        # read (in the progress update, say) trains one more epoch and then saves, never stopping unsaved.
         cfg = self.cfg
         if self.obs is None:
             self.start()
@@ -294,7 +296,8 @@ class Trainer:
         loggers = [RunLogger(p.run_dir, p.cfg, p.resumed_from if p.resumed_from >= 0 else None)
                    if p.run_dir is not None else None for p in self.parts]
         with stop_on_signal() as stop, progress_bar(cfg, self.step, len(self.parts)) as bar:
-            while self.epoch < cfg.num_epochs and not stop.is_set():
+            stopping = False
+            while self.epoch < cfg.num_epochs and not stopping:
                 before = self.step
                 self.train_epoch()
                 done = self.epoch == cfg.num_epochs
@@ -304,7 +307,8 @@ class Trainer:
                         if logger is not None:
                             logger.log(part.metric_rows, part.visits, self.step)
                     bar.set_postfix(postfix([r for rows in latest for r in rows], self.num_agents), refresh=False)
-                if done or stop.is_set() or self.step - self.last_checkpoint >= cfg.run.checkpoint_every:
+                stopping = stop.is_set()
+                if done or stopping or self.step - self.last_checkpoint >= cfg.run.checkpoint_every:
                     self.save()
                 bar.update(self.step - before)
         for logger in loggers:

@@ -219,3 +219,34 @@ def test_a_diverged_seed_resumes_and_neither_blocks_the_others_nor_is_exported(t
     assert picked and 1 not in picked  # best and median among the seeds that can act
     with pytest.raises(ValueError, match="lr must be"):
         TrainConfig().replace(lr=1e30)
+
+
+def test_a_stop_after_the_checkpoint_decision_trains_one_more_epoch_and_saves(tmp_path, monkeypatch):
+    """A stop landing after an epoch's checkpoint decision (here: in the progress update, which writes
+    progress.json) is read at the next epoch's decision: the run never stops without a checkpoint of its step.
+    """
+    from contextlib import contextmanager
+
+    import train.trainer as trainer_module
+    from train.runlog import request_stop
+
+    trainer = Trainer(SMALL.replace(steps=2000), tmp_path / "run")
+    real_bar = trainer_module.progress_bar
+
+    @contextmanager
+    def bar_that_stops(*args, **kwargs):
+        with real_bar(*args, **kwargs) as bar:
+            update = bar.update
+
+            def update_then_stop(n):
+                update(n)
+                if trainer.epoch == 2:
+                    request_stop()  # as the first SIGINT's handler does, without signalling pytest
+
+            bar.update = update_then_stop
+            yield bar
+
+    monkeypatch.setattr(trainer_module, "progress_bar", bar_that_stops)
+    trainer.run()
+    trainer.close()
+    assert trainer.epoch == 3 and trainer.last_checkpoint == trainer.step == 800  # unfixed: epoch 2, checkpoint 0
