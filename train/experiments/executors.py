@@ -47,7 +47,54 @@ def worker_context():
 
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(list(WORKER_PRELOAD))
+    start_fork_server()
     return ctx
+
+
+def start_fork_server() -> None:
+    """Start the workers' fork server now (where it is not running yet), out of Ctrl-C's reach.
+
+    The server imports `WORKER_PRELOAD` for seconds before it ignores SIGINT itself, and a Ctrl-C meanwhile
+    killed it with a traceback. It is spawned with SIGINT blocked, which it inherits: a Ctrl-C stays pending
+    there until it ignores SIGINT, and each worker unblocks it again (`_init_worker`). This process keeps its
+    own handler meanwhile: ignoring SIGINT here too would drop a Ctrl-C that another of its threads (torch's,
+    numba's) takes. Outside the main thread the server starts when the first worker does, as before.
+    """
+    from multiprocessing import forkserver, resource_tracker
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    resource_tracker.ensure_running()  # first: starting it unblocks SIGINT (after blocking it for its own start)
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+
+def end_fork_server() -> None:
+    """End the workers' fork server (after an interrupted sweep), so that it starts no worker once the sweep
+    has gone: one still importing `WORKER_PRELOAD` would otherwise go on to fork the workers asked of it.
+
+    CPython's private attributes differ between versions: where they are missing, the server is left to exit
+    by itself.
+    """
+    from multiprocessing import forkserver
+
+    server = getattr(forkserver, "_forkserver", None)
+    pid = getattr(server, "_forkserver_pid", None)
+    if pid is None:
+        return
+    try:
+        os.kill(pid, signal.SIGTERM)
+    except ProcessLookupError:
+        pass
+    stop = getattr(server, "_stop", None)
+    if stop is not None:
+        try:
+            stop()  # closes its pipe, reaps it and removes its socket, so a later sweep starts a new one
+        except OSError:
+            pass
 
 
 def _init_worker(stop, sweep: int) -> None:
@@ -58,6 +105,7 @@ def _init_worker(stop, sweep: int) -> None:
     global _STOP
     _STOP = stop
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # blocked in its fork server (start_fork_server)
     _follow_sweep(sweep)
     if _sweep_gone():  # it died before this worker started
         os._exit(1)
@@ -185,7 +233,10 @@ def run_local(jobs: Sequence[Job | Pack], workers: int, on_result: Callable[[Job
         with _sigterm_interrupts():
             _collect(pool, jobs, pending, results, on_result)
     except KeyboardInterrupt:
-        _shut_down_after_a_stop(pool, stop, list(pending))
+        try:
+            _shut_down_after_a_stop(pool, stop, list(pending))
+        finally:
+            end_fork_server()
         raise
     pool.shutdown(wait=True)
     return results

@@ -202,3 +202,83 @@ def test_a_second_signal_while_the_sweep_stops_ends_it_without_hanging(tmp_path)
     os.killpg(proc.pid, signal.SIGINT)  # the second reaches the workers too, as `timeout -s INT` or Ctrl-C does
     err = _wait_or_kill(proc)
     assert proc.returncode == 130 and "re-run the same command to resume" in err
+
+
+def _in_own_session(code: str, tmp_path: Path) -> str:
+    """Run ``code`` in a fresh interpreter in a session of its own (any signal it sends itself never reaches
+    pytest), with ``tmp_path`` importable; its stdout.
+    """
+    path = os.pathsep.join([str(tmp_path), str(REPO), os.environ.get("PYTHONPATH", "")])
+    proc = subprocess.run([sys.executable, "-c", code], cwd=REPO, start_new_session=True, capture_output=True,
+                          text=True, timeout=240, env={**os.environ, "PYTHONPATH": path})
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
+_PROBE = """
+import os, signal
+os.kill(os.getpid(), signal.SIGINT)  # a Ctrl-C while the fork server imports its preload
+open({where!r}, "w").write("survived")
+"""
+
+
+def test_a_ctrl_c_neither_kills_the_fork_server_while_it_imports_nor_is_lost_to_the_sweep(tmp_path):
+    (tmp_path / "ecorl_probe.py").write_text(_PROBE.format(where=str(tmp_path / "probe.txt")))
+    code = f"""if True:
+        import os, signal, time
+        from multiprocessing import forkserver
+        from train.experiments import executors
+        executors.WORKER_PRELOAD = ("ecorl_probe",)
+        caught = []
+        signal.signal(signal.SIGINT, lambda *_: caught.append(1))
+        spawn = forkserver.ensure_running
+
+        def ctrl_c_then_spawn():
+            os.kill(os.getpid(), signal.SIGINT)  # a Ctrl-C that lands while the server is spawned
+            time.sleep(0.3)  # time for another thread of this process to take it
+            spawn()
+
+        forkserver.ensure_running = ctrl_c_then_spawn
+        executors.worker_context()
+        server = forkserver._forkserver._forkserver_pid
+        while not os.path.exists({str(tmp_path / "probe.txt")!r}) and not os.waitpid(server, os.WNOHANG)[0]:
+            time.sleep(0.05)
+        print(len(caught), os.path.exists({str(tmp_path / "probe.txt")!r}))
+    """
+    assert _in_own_session(code, tmp_path).split() == ["1", "True"]  # the sweep's handler took it; the server lives
+
+
+def test_a_worker_of_the_fork_server_takes_ctrl_c_again(tmp_path):
+    code = """if True:
+        import os, signal
+        from concurrent.futures import ProcessPoolExecutor
+        from train.experiments import executors
+        executors.WORKER_PRELOAD = ()
+        ctx = executors.worker_context()
+        with ProcessPoolExecutor(1, mp_context=ctx, initializer=executors._init_worker,
+                                 initargs=(ctx.Event(), os.getpid())) as pool:
+            print(signal.SIGINT in pool.submit(signal.pthread_sigmask, signal.SIG_BLOCK, []).result())
+    """
+    assert _in_own_session(code, tmp_path).split() == ["False"]  # its trainer's handler can stop it
+
+
+def test_an_interrupted_sweep_ends_its_fork_server(tmp_path):
+    code = """if True:
+        import os
+        from multiprocessing import forkserver
+        from train.experiments import executors
+        executors.WORKER_PRELOAD = ()
+        forkserver.ensure_running()
+        server = forkserver._forkserver._forkserver_pid
+
+        def interrupted(*_):
+            raise KeyboardInterrupt  # Ctrl-C while the sweep submits its jobs
+
+        executors._collect = interrupted
+        try:
+            executors.run_local([None], 1, print)
+        except KeyboardInterrupt:
+            pass
+        print(server is not None, os.path.exists(f"/proc/{server}"), forkserver._forkserver._forkserver_pid)
+    """
+    assert _in_own_session(code, tmp_path).split() == ["True", "False", "None"]  # ended and reaped
