@@ -348,3 +348,23 @@ def test_a_planted_results_file_cannot_make_the_report_read_or_gather_without_bo
     whole = bootstrap_ci(values)
     monkeypatch.setattr(stats, "BOOTSTRAP_BYTES", 3 * 2000 * 40 * 8)  # three rows at a time, then two, and so on
     assert all(np.array_equal(a, b) for a, b in zip(whole, bootstrap_ci(values)))
+
+
+@pytest.mark.parametrize("checkpoint", [True, False])
+def test_a_run_stopped_before_its_first_evaluation_is_named_with_the_command_that_resumes_it(tmp_path, checkpoint):
+    from train.config import TrainConfig
+    from train.experiments.report.runs import ReportError
+    from train.storage.checkpoint import CHECKPOINT_NAME
+    from train.storage.rundir import RunDir
+
+    run = tmp_path / "run"
+    run.mkdir()
+    RunDir(run).write_config(TrainConfig().replace(task="hunting"))  # what `ecorl train` wrote, without metrics.csv
+    if checkpoint:
+        (run / CHECKPOINT_NAME).write_bytes(b"")
+    with pytest.raises(ReportError) as raised:
+        make_report(run, videos=False)
+    message = str(raised.value)
+    assert "\n" not in message and "before its first evaluation" in message
+    resume = f"ecorl train hunting --resume --out {run}"
+    assert (resume in message) == checkpoint and ("train it again" in message) != checkpoint

@@ -53,6 +53,7 @@ from train.experiments.report.runs import (
     load_experiment,
     load_reference,
     load_single_run,
+    stopped_before_evaluating,
 )
 from train.experiments.report.stats import BOOTSTRAP_NOTE, COLLAPSED_RULE, DIVERGED_RULE
 from train.experiments.report.tables import (
@@ -360,6 +361,8 @@ def make_report(root: str | Path, videos: bool | None = None, out: str | Path | 
     for name in ("figures", "report.md", "index.html"):
         if (target / name).is_symlink():
             raise ReportError(f"{target / name} is a symbolic link; the report writes only inside {target}: remove it")
+    if stopped := stopped_before_evaluating(source, root):
+        raise ReportError(stopped)
     sections = build_sections(source, target, videos)
     if not sections:
         raise ReportError(f"{root} is neither an experiment's results ({EXPERIMENT_FILE} not found in it or in "

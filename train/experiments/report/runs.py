@@ -15,6 +15,7 @@ from train.config import TrainConfig
 from train.experiments.catalog import BUDGETS, EXPERIMENTS
 from train.experiments.jobs import DONE_FILE
 from train.experiments.report.stats import REWARD_BOUND, blown, diverged
+from train.storage.checkpoint import CHECKPOINT_NAME
 from train.storage.rundir import EXPERIMENT_FILE, MAX_METRIC_ROWS, MAX_METRICS_BYTES
 from train.storage.safeio import load_json, read_text
 
@@ -327,6 +328,24 @@ def is_run_dir(path: Path) -> bool:
     """
     files = all(os.path.lexists(path / name) for name in ("config.json", "metrics.csv"))
     return files and not (path / EXPERIMENT_FILE).exists()
+
+
+def stopped_before_evaluating(path: Path, shown: str | Path) -> str | None:
+    """One line for an ``ecorl train`` run directory with no evaluation yet (config.json, no metrics.csv), naming
+    the command that resumes it (``shown``: the directory as the user gave it); None for any other directory.
+    """
+    if (not (path / "config.json").is_file() or os.path.lexists(path / "metrics.csv")
+            or os.path.lexists(path / EXPERIMENT_FILE)):
+        return None
+    try:
+        task = TrainConfig.from_dict(load_json(path / "config.json")).env.task
+    except (ValueError, TypeError, KeyError):
+        return None  # not a run's configuration: the report's usual error names what it reads
+    if not os.path.lexists(path / CHECKPOINT_NAME):
+        return (f"{shown} holds a run stopped before its first evaluation and its first checkpoint: nothing to "
+                f"report or resume; delete it and train it again")
+    return (f"{shown} holds a run stopped before its first evaluation: nothing to report yet; continue it with: "
+            f"ecorl train {task} --resume --out {shown}")
 
 
 def load_single_run(path: Path) -> ExperimentResults:
