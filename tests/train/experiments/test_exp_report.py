@@ -368,3 +368,18 @@ def test_a_run_stopped_before_its_first_evaluation_is_named_with_the_command_tha
     assert "\n" not in message and "before its first evaluation" in message
     resume = f"ecorl train hunting --resume --out {run}"
     assert (resume in message) == checkpoint and ("train it again" in message) != checkpoint
+
+
+def test_an_experiment_report_names_its_conditions_not_evaluated_yet(tmp_path):
+    exp = get_experiment("headline")
+    root = tmp_path / "results" / exp.name
+    root.mkdir(parents=True)
+    (root / EXPERIMENT_FILE).write_text(json.dumps({**exp.describe(), "budget": "quick", "tasks_run": ["salad"]}))
+    _fake_run(root / "salad" / "static-episodic", 3, [5_000, 10_000], lambda i, k: 0.1 * k)
+    (root / "salad" / "static-reset-free").mkdir()  # started (config.json), stopped before its first evaluation
+    (root / "salad" / "static-reset-free" / "config.json").write_text("{}")
+    (root / "salad" / "dynamic-episodic").mkdir()  # started, nothing written yet
+    make_report(root, videos=False)
+    line = ("Not evaluated yet, so not shown: salad/dynamic-episodic, salad/static-reset-free; re-run the same "
+            "command to train them.")  # not dynamic-reset-free: never started, perhaps never asked for
+    assert line in (root / "report.md").read_text() and line in (root / "index.html").read_text()

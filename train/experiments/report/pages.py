@@ -159,6 +159,14 @@ def _budget_line(exp: ExperimentResults) -> str:
     return f"Budget: `{budget}`{reached}{paper_seeds}. Directory: `{_shown(exp.path)}`."
 
 
+def _unevaluated_line(exp: ExperimentResults) -> str:
+    """The sentence naming the conditions that have no evaluation yet ('' when there are none)."""
+    if not exp.unevaluated:
+        return ""
+    return (f"Not evaluated yet, so not shown: {', '.join(sorted(exp.unevaluated))}; re-run the same command to "
+            f"train them.")
+
+
 def _md_table(rows: Sequence[dict[str, Any]], columns: Sequence[tuple[str, str]]) -> list[str]:
     """A markdown table of ``rows`` with (key, header) columns."""
     out = ["| " + " | ".join(h for _, h in columns) + " |", "|" + "---|" * len(columns)]
@@ -224,6 +232,8 @@ def _section_markdown(s: Section, out: Path) -> list[str]:
         if unfinished:
             lines += [f"{len(unfinished)} run(s) not finished yet (their latest evaluation is shown); "
                       f"re-run the same command to complete them.", ""]
+    if not_yet := _unevaluated_line(s.exp):
+        lines += [not_yet, ""]
     if s.milestones:
         lines += _md_table(s.milestones, milestone_columns(s.exp)) + [""]
     if s.measures:
@@ -279,6 +289,8 @@ def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Seq
                               (s.measures, MEASUREMENT_COLUMNS)):
             if rows:
                 parts.append(_html_table(rows, columns))
+        if not_yet := _unevaluated_line(s.exp):
+            parts.append(f"<p>{html.escape(not_yet)}</p>")
         if s.claims:
             parts.append("<p>What the paper reports:</p><ul>" + "".join(
                 f"<li>{html.escape(c['text'])} ({html.escape(c['figure'])})</li>" for c in s.claims) + "</ul>")

@@ -75,6 +75,8 @@ class ExperimentResults:
     runs: list[Run] = field(default_factory=list)
     measurements: list[dict[str, Any]] = field(default_factory=list)
     """Table 1 rows: task, measure, condition, mean, std, seeds, censored."""
+    unevaluated: list[str] = field(default_factory=list)
+    """The conditions (``task/condition``) whose run directory holds no evaluation yet."""
 
     @property
     def tasks(self) -> list[str]:
@@ -308,6 +310,8 @@ def load_experiment(path: Path) -> ExperimentResults:
             run = read_run(run_dir, task, cond["name"], cond["label"]) if (run_dir / "metrics.csv").exists() else None
             if run is not None:
                 result.runs.append(run)
+            elif run_dir.is_dir():  # started (its directory made), not evaluated yet
+                result.unevaluated.append(f"{task}/{cond['name']}")
     return result
 
 
