@@ -151,9 +151,13 @@ def test_out_pointing_at_a_file_is_refused(tmp_path, capsys):
     assert target.read_text() == "mine"
 
 
-@pytest.mark.parametrize("command", [["train", "salad"], ["demo", "--steps", "2"]])
-def test_out_under_a_file_names_the_file(command, tmp_path, capsys):
-    """Used to print '[Errno 20] Not a directory: ...' (train) or '[Errno 17] File exists: ...' (demo)."""
+@pytest.mark.parametrize("command", [["train", "salad"], ["demo", "--steps", "2"], ["run", "rnd", "--budget", "smoke"],
+                                     ["report", "FINISHED", "--no-videos"], ["merge-seeds", "FINISHED", "FINISHED"]])
+def test_out_under_a_file_names_the_file(command, finished, tmp_path, capsys):
+    """Used to print '[Errno 20] Not a directory: ...' (train, run, report), '[Errno 17] File exists: ...' (demo,
+    merge-seeds) or 'not an empty directory' (merge-seeds).
+    """
+    command = [str(finished) if word == "FINISHED" else word for word in command]
     target = tmp_path / "notes.txt"
     target.write_text("mine")
     out = target / "run" / "deeper"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from train.cli.common import user_errors
+from train.cli.common import check_out_dir, user_errors
 from train.storage.rundir import RunDirError
 
 
@@ -30,6 +30,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from train.experiments.merge import merge_seed_runs
     from train.policy import run_config
 
+    check_out_dir(args.out)
     with user_errors(ValueError, OSError, RunDirError):
         out = merge_seed_runs(args.parts, args.out)
         cfg = run_config(out)

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from train.cli.common import relative, user_errors
+from train.cli.common import check_out_dir, relative, user_errors
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -34,6 +34,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Write the report and print the paths written."""
     from train.experiments.report import make_report
 
+    if args.out is not None:
+        check_out_dir(args.out)
     with user_errors(OSError, ValueError):
         paths = make_report(args.dir, args.videos, args.out)
     for path in paths:

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from train.cli.common import DEFAULT_OUT, UserError, minutes, nonnegative, positive, relative, user_errors
+from train.cli.common import DEFAULT_OUT, check_out_dir, minutes, nonnegative, positive, relative, user_errors
 from train.experiments.catalog import BUDGETS, EXPERIMENTS, get_experiment
 
 
@@ -152,9 +152,8 @@ def _twins(exp, jobs: list, args: argparse.Namespace) -> tuple[list, list]:
 
 
 def _check_out_and_device(args: argparse.Namespace) -> None:
-    """Refuse (one line) an --out that is a file and a --device torch cannot use here."""
-    if args.out.exists() and not args.out.is_dir():
-        raise UserError(f"--out {args.out} is a file, not a directory; choose a directory path")
+    """Refuse (one line) an --out that is, or lies under, a file and a --device torch cannot use here."""
+    check_out_dir(args.out)
     if args.device is not None:
         from train.packing import check_device
 
