@@ -152,12 +152,21 @@ def test_ctrl_c_stops_cleanly_and_the_rerun_resumes(tmp_path, cli):
     assert all((out / "rnd" / "factory" / c / DONE_FILE).exists() for c in ("static", "rnd", "dynamic", "env-shaping"))
 
 
+def _ctrl_c_as_at_a_terminal() -> None:
+    """In the sweep's child, before exec: SIGINT back to its default, as a terminal's job gets it. A suite started
+    in the background of a non-interactive shell inherits SIGINT ignored, and Python then never turns it into
+    KeyboardInterrupt, so these tests would measure how pytest was launched instead of the sweep.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start_sweep(args: tuple[str, ...], out: Path, logged: str) -> subprocess.Popen:
     """``ecorl ARGS`` in its own process group (stderr piped); returns once ``out`` holds a file matching
     ``logged`` (a run has logged an evaluation).
     """
     proc = subprocess.Popen([sys.executable, "-m", "train.cli", *args], cwd=REPO, start_new_session=True,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_ctrl_c_as_at_a_terminal)
     deadline = time.monotonic() + 240
     while not list(out.glob(logged)):
         assert proc.poll() is None and time.monotonic() < deadline
