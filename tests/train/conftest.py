@@ -48,6 +48,7 @@ SMOKE_TASKS = {
     "foodcollector-episodes-1000": None,
     "hunting-behaviour": None,
     "hunting-inventory": None,
+    "factory-behaviour": None,
 }
 """Which tasks of each experiment the smoke fixture runs (None: all of them)."""
 SMOKE_CONDITIONS = {
@@ -59,6 +60,7 @@ SMOKE_CONDITIONS = {
     "foodcollector-episodes-1000": ["dynamic-episodic"],
     "hunting-behaviour": ["eps-1"],
     "hunting-inventory": ["rf-waypoint-inv8"],
+    "factory-behaviour": ["released-eps-floor-0.3"],
 }
 """Which conditions of an experiment the smoke fixture runs where not all (each new kind of setting once)."""
 

@@ -12,6 +12,8 @@ sentence; its entry was dumped again from its code, its two earlier arms' jobs c
 ``factory-make-axe`` gained one arm, its dynamic non-episodic condition with the released network
 (``dynamic-reset-free-inv8``), and a sentence; dumped the same way, its nine earlier arms' jobs checked unchanged.
 ``walls``' paper budget went from 3 seeds to the 10 its shipped runs have (its ten paper jobs' ``seeds`` edited).
+``hunting-behaviour`` gained a static arm (``static-eps-floor-0.3-inv8``) and a sentence, and ``factory-behaviour``
+was appended; both dumped from their code, ``hunting-behaviour``'s earlier jobs checked unchanged first.
 """
 
 from __future__ import annotations
