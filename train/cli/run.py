@@ -134,7 +134,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     if results is None:
         return 130
     if not _all_finished(results):
-        return 1
+        return _unfinished_code(results)
     return _finish(where, args.report)
 
 
@@ -223,7 +223,7 @@ def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, name
         for line in fill_copies(copies):
             print(line, file=sys.stderr)
     if not _all_finished(results):
-        return 1
+        return _unfinished_code(results)
     for name in ran:
         _finish(args.out / name, args.report)
     return 0
@@ -254,6 +254,15 @@ def _all_finished(results: list) -> bool:
         print(_unfinished_message(unfinished), file=sys.stderr)
         return False
     return True
+
+
+def _unfinished_code(results: list) -> int:
+    """The exit status of a sweep that did not finish: 130, as after Ctrl-C, when every run it left unfinished
+    was stopped by a signal at a checkpoint (the workers can take a Ctrl-C that the sweep's own process does not
+    see as one), else 1.
+    """
+    unfinished = {r.status for r in results} - {"done", "skipped"}
+    return 130 if unfinished == {"interrupted"} else 1
 
 
 def _unfinished_message(unfinished: list) -> str:

@@ -303,6 +303,24 @@ def test_an_unfinished_sweep_names_each_run_and_why():
     assert "1 trained by another ecorl process (salad/c; it may finish them)" in message
 
 
+
+@pytest.mark.parametrize(("statuses", "code"), [(("interrupted", "done"), 130), (("interrupted", "failed"), 1),
+                                                (("interrupted", "kept"), 1)])
+def test_a_sweep_its_workers_stopped_exits_as_after_ctrl_c(statuses, code, monkeypatch, tmp_path, capsys):
+    """A Ctrl-C reaches the workers, which stop at a checkpoint; when the sweep's own process took it as no
+    KeyboardInterrupt, it used to exit 1 ("runs: 4 interrupted") instead of 130. A failure still exits 1.
+    """
+    import train.experiments.sweep as sweep
+    from train.experiments.jobs import JobResult
+
+    def results(jobs, *args):
+        return [JobResult(job.name, status, 1.0, "why") for job, status in zip(jobs, statuses)]
+
+    monkeypatch.setattr(sweep, "run_jobs", results)
+    assert cli.main(["run", "headline", "--budget", "smoke", "--out", str(tmp_path), "--no-progress",
+                     "--condition", "static-episodic", "dynamic-reset-free"]) == code
+    assert "re-run" in capsys.readouterr().err
+
 @pytest.mark.parametrize("name, message", [("films", "is a directory; give the file to write, e.g. --out "),
                                            ("film.gif", "writes an H.264 MP4; give a file name ending in .mp4")])
 def test_video_out_must_name_an_mp4_file(name, message, tmp_path, capsys):
