@@ -173,11 +173,13 @@ def _hunting_behaviour() -> Experiment:
         {"hunting": 1_500_000}, 10, {"smoke": SMOKE, "quick": quick(3, 150_000)})
 
 
-def _factory_behaviour() -> Experiment:
-    """Dynamic non-episodic factory with the behaviour policy never greedier than epsilon 0.3."""
+def _factory_behaviour(make_axe_exp: Experiment, released_exp: Experiment) -> Experiment:
+    """Dynamic non-episodic factory with the behaviour policy never greedier than epsilon 0.3: the arms of
+    ``factory-make-axe`` and ``factory-released`` it raises the floor of, given as those experiments.
+    """
     floor = {"eps_end": 0.3}
-    make_axe = next(c for c in _factory_make_axe().conditions["factory"] if c.name == "dynamic-reset-free-inv8")
-    released = next(c for c in _factory_released().conditions["factory"] if c.name == "dynamic-reset-free")
+    [make_axe] = make_axe_exp.select_conditions("factory", ["dynamic-reset-free-inv8"])
+    [released] = released_exp.select_conditions("factory", ["dynamic-reset-free"])
     return Experiment(
         "factory-behaviour", "Fig. 4 (factory), behaviour policy", "Does an exploring behaviour make factory "
         "learnable?",
@@ -212,5 +214,7 @@ def _hunting_inventory() -> Experiment:
 
 def released_experiments() -> list[Experiment]:
     """The released scripts' experiments, in the order ``ecorl run --list`` shows them."""
-    return [_factory_released(), _factory_make_axe(), _hunting_released(), _hunting_released_fig4(),
-            _foodcollector_episodes(), _hunting_behaviour(), _hunting_inventory(), _factory_behaviour()]
+    factory_released, factory_make_axe = _factory_released(), _factory_make_axe()
+    return [factory_released, factory_make_axe, _hunting_released(), _hunting_released_fig4(),
+            _foodcollector_episodes(), _hunting_behaviour(), _hunting_inventory(),
+            _factory_behaviour(factory_make_axe, factory_released)]

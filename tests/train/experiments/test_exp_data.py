@@ -362,12 +362,6 @@ def test_make_axe_released_input_arm_is_its_dynamic_non_episodic_arm_with_only_t
 
 
 
-def _paper_arm(experiment: str, task: str, condition: str):
-    exp = get_experiment(experiment)
-    [cond] = [c for c in exp.conditions[task] if c.name == condition]
-    return job_config(exp, task, cond, exp.budget("paper"))
-
-
 @pytest.mark.parametrize(("arm", "baseline"), [
     (("factory-behaviour", "factory", "make-axe-eps-floor-0.3"),
      ("factory-make-axe", "factory", "dynamic-reset-free-inv8")),
@@ -375,15 +369,15 @@ def _paper_arm(experiment: str, task: str, condition: str):
     (("hunting-behaviour", "hunting", "eps-floor-0.3-inv8"), ("hunting-inventory", "hunting", "rf-waypoint-inv8")),
 ])
 def test_an_epsilon_floor_arm_is_its_baseline_with_only_the_floor_raised(arm, baseline):
-    theirs = _paper_arm(*baseline)
+    theirs = _paper_config(*baseline)
     assert theirs.dqn.eps_end == 0.1
-    assert _paper_arm(*arm) == theirs.replace(eps_end=0.3)
+    assert _paper_config(*arm) == theirs.replace(eps_end=0.3)
 
 
 def test_the_static_epsilon_floor_arm_differs_from_the_dynamic_one_in_dynamism_alone():
-    dynamic = _paper_arm("hunting-behaviour", "hunting", "eps-floor-0.3-inv8")
+    dynamic = _paper_config("hunting-behaviour", "hunting", "eps-floor-0.3-inv8")
     assert dynamic.env.dynamism == 0.2
-    assert _paper_arm("hunting-behaviour", "hunting", "static-eps-floor-0.3-inv8") == dynamic.replace(dynamism=0.0)
+    assert _paper_config("hunting-behaviour", "hunting", "static-eps-floor-0.3-inv8") == dynamic.replace(dynamism=0.0)
 
 # (experiment, task, condition) pairs that build the very same config: one run stands for both, so the
 # shipped results copy it and the not-yet-run list counts it once (docs/results/paper/README.md).
