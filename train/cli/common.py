@@ -86,11 +86,25 @@ def check_out_file(out: Path, what: str, example: str) -> None:
 
 
 def _integer(text: str, what: str) -> int:
-    """``text`` as an integer, or an argparse error naming ``what`` was expected."""
+    """``text`` as an integer (``300000``, ``300_000``, or a whole number written ``3e5``), or an argparse error
+    naming ``what`` was expected.
+    """
     try:
         return int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected {what}, got {text}") from None
+        pass
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected {what} (e.g. 300000 or 3e5), got {text}") from None
+    if not value.is_integer():
+        raise argparse.ArgumentTypeError(f"expected {what}, a whole number, got {text}")
+    return int(value)
+
+
+def integer(text: str) -> int:
+    """Any whole number, also written ``3e5`` (an argparse type; a config check bounds it later)."""
+    return _integer(text, "an integer")
 
 
 def positive(text: str) -> int:

@@ -11,6 +11,7 @@ import json
 import typing
 from typing import Any
 
+from train.cli.common import integer
 from train.config import SECTIONS, TrainConfig, field_docs, field_owners
 
 SKIPPED_FIELDS = ("task",)
@@ -36,6 +37,11 @@ def _parse_env_kwarg(text: str) -> tuple[str, Any]:
         return key, value
 
 
+def _argument_type(hint: Any) -> Any:
+    """The argparse type of a field of type ``hint``: integers also take ``3e5``, the rest parse as their type."""
+    return integer if hint is int else hint
+
+
 def _add_field(group, f: dataclasses.Field, hint: Any, doc: str) -> None:
     """Add the flag(s) of one config field to an argument group."""
     default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
@@ -50,14 +56,14 @@ def _add_field(group, f: dataclasses.Field, hint: Any, doc: str) -> None:
     elif hint is bool:
         group.add_argument(flag(f.name), action=argparse.BooleanOptionalAction, help=help_text, **common)
     elif origin is tuple:
-        group.add_argument(flag(f.name), type=typing.get_args(hint)[0], nargs="+", metavar="N",
+        group.add_argument(flag(f.name), type=_argument_type(typing.get_args(hint)[0]), nargs="+", metavar="N",
                            help=help_text, **common)
     elif origin is dict:  # env_kwargs -> --env-kwarg, eval_env_kwargs -> --eval-env-kwarg
         group.add_argument(flag(f.name), type=_parse_env_kwarg, action="append",
                            metavar="KEY=VALUE", help=f"{doc} Repeatable.", **common)
     else:
         base = next((a for a in typing.get_args(hint) if a is not type(None)), hint)
-        group.add_argument(flag(f.name), type=base, choices=f.metadata.get("choices"), help=help_text,
+        group.add_argument(flag(f.name), type=_argument_type(base), choices=f.metadata.get("choices"), help=help_text,
                            metavar=None if "choices" in f.metadata else f.name.upper(), **common)
 
 

@@ -52,6 +52,18 @@ def test_flags_set_config_fields():
     assert cfg.dqn.view_layers == (32, 32)
 
 
+def test_integer_flags_take_scientific_notation_and_underscores_but_not_fractions(capsys):
+    cfg = _parse("--steps", "1.5e5", "--seeds", "1e1", "--eval-every", "5_000", "--view-layers", "6.4e1", "32")
+    assert (cfg.run.steps, cfg.run.seeds, cfg.eval.eval_every, cfg.dqn.view_layers) == (150_000, 10, 5_000, (64, 32))
+    assert main(["run", "headline", "--steps", "2e3", "--dry-run"]) == 0
+    assert "x 2200 steps" in capsys.readouterr().out  # the budget adds its warm-up of 200
+    for text, said in (("1.5", "expected an integer, a whole number, got 1.5"),
+                       ("3e5x", "expected an integer (e.g. 300000 or 3e5), got 3e5x")):
+        with pytest.raises(SystemExit):
+            _parse("--steps", text)
+        assert capsys.readouterr().err.strip() == f"ecorl train: error: argument --steps: {said}"
+
+
 def test_reset_free_and_episodic_exclude_each_other():
     assert not _parse("--episodic").env.reset_free
     with pytest.raises(SystemExit):
