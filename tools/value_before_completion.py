@@ -1,0 +1,108 @@
+"""How much value a trained policy's Q-network gives the steps that lead to a task completion.
+
+    python tools/value_before_completion.py POLICY.npz [POLICY.npz ...] [--completions 300] [--before 20]
+
+For each exported policy (`policies/best.npz` of a shipped run), worlds of its own training environment (task,
+dynamism, reward, env parameters, with or without resets, as trained) are stepped by a uniform random behaviour
+until ``--completions`` tasks are completed. For each completion, the observations of the ``--before`` steps before
+it are kept (k = 0 is the state in which the completing action was taken; windows that cross a reset are dropped).
+Printed per k: the mean greedy value max_a Q(s), the mean Q of the action the behaviour took, and, against a
+baseline of random states from the same worlds, the share of those states whose greedy value the window's state
+beats. At k = 0 it also prints how often the completing action is the greedy one, and its Q minus the best other
+action's (its advantage as the network sees it).
+
+A learner that has assigned credit shows values rising toward the completion (k -> 0) and above the random
+states'; one that has not shows a flat profile at the random states' level. Outside the package and its tests:
+a diagnostic whose figures `docs/results/paper/figures.md` quotes with this command.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import deque
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from train.policy import load_policy
+from train.tasks import completions, get_task, make_vector_env, step_worlds
+
+WORLDS = 64
+"""Worlds stepped side by side."""
+
+
+def completion_windows(policy, completions_wanted: int, before: int, seed: int = 0
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Windows (E, before + 1, obs_dim) of observations ending in the state of a completing action (k = 0 last),
+    the actions taken in them (E, before + 1), and as many random states (E, obs_dim) from the same worlds.
+    """
+    env_cfg = policy.cfg.env
+    env = make_vector_env(get_task(env_cfg.task).env_id, WORLDS, env_cfg.env_make_kwargs)
+    rng = np.random.default_rng(seed)
+    obs, _ = env.reset(seed=seed)
+    history = [deque(maxlen=before + 1) for _ in range(WORLDS)]
+    resetting = np.zeros(WORLDS, dtype=bool)
+    windows, actions, random_states = [], [], []
+    n_actions = int(env.single_action_space.n)
+    while len(windows) < completions_wanted:
+        act = rng.integers(n_actions, size=WORLDS)
+        for i in np.flatnonzero(~resetting):
+            history[i].append((obs[i].copy(), int(act[i])))
+        obs, _, terminated, truncated, _ = step_worlds(env, act)
+        for i in np.flatnonzero(completions(env) & ~resetting):
+            if len(history[i]) == before + 1:
+                windows.append(np.stack([o for o, _ in history[i]]))
+                actions.append([a for _, a in history[i]])
+                random_states.append(obs[rng.integers(WORLDS)].copy())
+        for i in np.flatnonzero(resetting):
+            history[i].clear()
+        resetting = terminated | truncated
+    env.close()
+    return np.stack(windows), np.asarray(actions), np.stack(random_states)
+
+
+def value_profile(policy, windows: np.ndarray, actions: np.ndarray, random_states: np.ndarray) -> list[str]:
+    """Lines of the printed table: per k, mean greedy value, mean Q of the taken action, share above random."""
+    def q(obs: np.ndarray) -> np.ndarray:
+        flat = torch.from_numpy(obs.reshape(1, -1, obs.shape[-1]).astype(np.float32))
+        return policy.q_values(flat)[0].numpy().reshape(*obs.shape[:-1], -1)
+
+    q_windows, q_random = q(windows), q(random_states)
+    values, random_values = q_windows.max(-1), q_random.max(-1)
+    taken = np.take_along_axis(q_windows, actions[..., None], -1)[..., 0]
+    before = windows.shape[1] - 1
+    last, completing = q_windows[:, -1], actions[:, -1]
+    greedy_last = (last.argmax(-1) == completing).mean()
+    others = np.where(np.arange(last.shape[-1]) == completing[:, None], -np.inf, last).max(-1)
+    advantage = np.take_along_axis(last, completing[:, None], -1)[:, 0] - others
+    lines = [f"random states: greedy value {random_values.mean():.2f} (median {np.median(random_values):.2f})",
+             f"k = 0: the completing action is greedy in {greedy_last:.0%} of {len(windows)} completions; its Q minus "
+             f"the best other action's: median {np.median(advantage):+.2f} "
+             f"[quartiles {np.quantile(advantage, 0.25):+.2f}, {np.quantile(advantage, 0.75):+.2f}]",
+             "   k   max_a Q   Q(taken)   above random"]
+    for k in (0, 1, 2, 3, 5, 10, 15, 20):
+        if k <= before:
+            col = before - k
+            above = (values[:, col, None] > random_values[None, :]).mean()
+            lines.append(f"{k:4d} {values[:, col].mean():9.2f} {taken[:, col].mean():10.2f} {above:13.0%}")
+    return lines
+
+
+def main() -> None:
+    """Print the value profile before completions for each policy named."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("policies", nargs="+", type=Path, help="exported policies (.npz)")
+    parser.add_argument("--completions", type=int, default=300, help="completions to collect (default: 300)")
+    parser.add_argument("--before", type=int, default=20, help="steps kept before each completion (default: 20)")
+    args = parser.parse_args()
+    for path in args.policies:
+        policy = load_policy(path)
+        cfg = policy.cfg.env
+        print(f"\n{path} (seed {policy.seed}; {cfg.task}, p {cfg.dynamism}, "
+              f"{'reset-free' if cfg.reset_free else 'episodic'}, {cfg.reward}, {cfg.env_kwargs or ''})")
+        print("\n".join(value_profile(policy, *completion_windows(policy, args.completions, args.before))))
+
+
+if __name__ == "__main__":
+    main()
