@@ -9,7 +9,9 @@ it are kept (k = 0 is the state in which the completing action was taken; window
 Printed per k: the mean greedy value max_a Q(s), the mean Q of the action the behaviour took, and, against a
 baseline of random states from the same worlds, the share of those states whose greedy value the window's state
 beats. At k = 0 it also prints how often the completing action is the greedy one, and its Q minus the best other
-action's (its advantage as the network sees it).
+action's (its advantage as the network sees it); then the same two numbers for those states with the agent's own
+cell emptied and with its hands emptied, which tell a network that ties the value to the state (its greedy value
+drops when the state is changed) from one that also ties it to the completing action (its advantage drops too).
 
 A learner that has assigned credit shows values rising toward the completion (k -> 0) and above the random
 states'; one that has not shows a flat profile at the random states' level. Outside the package and its tests:
@@ -26,7 +28,7 @@ import numpy as np
 import torch
 
 from train.policy import load_policy
-from train.tasks import completions, get_task, make_vector_env, step_worlds
+from train.tasks import completions, get_task, make_vector_env, probe, step_worlds
 
 WORLDS = 64
 """Worlds stepped side by side."""
@@ -89,6 +91,33 @@ def value_profile(policy, windows: np.ndarray, actions: np.ndarray, random_state
     return lines
 
 
+VIEW_CELLS, CENTRE = 25, 12
+"""The grid tasks' observation: a 5×5 view one-hot per channel (index channel·25 + cell), the agent's cell at 12,
+then the carried object one-hot."""
+
+
+def counterfactual_lines(policy, windows: np.ndarray, actions: np.ndarray) -> list[str]:
+    """Lines comparing, at k = 0, the completing action's advantage and the greedy value of the states as seen
+    with the same states with the agent's own cell emptied, or with its hands emptied: whether the network ties
+    the value to the state or to the action that completes the task.
+    """
+    states, completing = windows[:, -1].astype(np.float32), actions[:, -1]
+    view_dim = probe(get_task(policy.cfg.env.task), policy.cfg.env).view_dim
+    centre_cells = CENTRE + VIEW_CELLS * np.arange(view_dim // VIEW_CELLS)
+    emptied_centre = states.copy()
+    emptied_centre[:, centre_cells] = 0.0
+    emptied_centre[:, CENTRE] = 1.0  # channel 0 is an empty cell
+    emptied_hands = states.copy()
+    emptied_hands[:, view_dim:] = 0.0
+    lines = ["k = 0 states        completing action's advantage (median)   greedy value (median)"]
+    for name, obs in (("as seen", states), ("own cell emptied", emptied_centre), ("hands emptied", emptied_hands)):
+        q = policy.q_values(torch.from_numpy(obs)[None])[0].numpy()
+        others = np.where(np.arange(q.shape[-1]) == completing[:, None], -np.inf, q).max(-1)
+        advantage = q[np.arange(len(q)), completing] - others
+        lines.append(f"{name:18s} {np.median(advantage):+20.2f} {np.median(q.max(-1)):28.2f}")
+    return lines
+
+
 def main() -> None:
     """Print the value profile before completions for each policy named."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -101,7 +130,9 @@ def main() -> None:
         cfg = policy.cfg.env
         print(f"\n{path} (seed {policy.seed}; {cfg.task}, p {cfg.dynamism}, "
               f"{'reset-free' if cfg.reset_free else 'episodic'}, {cfg.reward}, {cfg.env_kwargs or ''})")
-        print("\n".join(value_profile(policy, *completion_windows(policy, args.completions, args.before))))
+        windows, actions, random_states = completion_windows(policy, args.completions, args.before)
+        print("\n".join(value_profile(policy, windows, actions, random_states)))
+        print("\n".join(counterfactual_lines(policy, windows, actions)))
 
 
 if __name__ == "__main__":
