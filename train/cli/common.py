@@ -96,9 +96,9 @@ def _integer(text: str, what: str) -> int:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected {what} (e.g. 300000 or 3e5), got {text}") from None
-    if not value.is_integer():
-        raise argparse.ArgumentTypeError(f"expected {what}, a whole number, got {text}")
+        value = None
+    if value is None or not value.is_integer():
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text}")
     return int(value)
 
 

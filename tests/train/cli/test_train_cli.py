@@ -57,8 +57,8 @@ def test_integer_flags_take_scientific_notation_and_underscores_but_not_fraction
     assert (cfg.run.steps, cfg.run.seeds, cfg.eval.eval_every, cfg.dqn.view_layers) == (150_000, 10, 5_000, (64, 32))
     assert main(["run", "headline", "--steps", "2e3", "--dry-run"]) == 0
     assert "x 2200 steps" in capsys.readouterr().out  # the budget adds its warm-up of 200
-    for text, said in (("1.5", "expected an integer, a whole number, got 1.5"),
-                       ("3e5x", "expected an integer (e.g. 300000 or 3e5), got 3e5x")):
+    for text, said in (("1.5", "expected an integer, got 1.5"), ("3e5x", "expected an integer, got 3e5x"),
+                       ("inf", "expected an integer, got inf")):
         with pytest.raises(SystemExit):
             _parse("--steps", text)
         assert capsys.readouterr().err.strip() == f"ecorl train: error: argument --steps: {said}"
