@@ -32,6 +32,9 @@ from train.tasks import completions, get_task, make_vector_env, probe, step_worl
 
 WORLDS = 64
 """Worlds stepped side by side."""
+VIEW_CELLS, CENTRE = 25, 12
+"""The grid tasks' observation: a 5×5 view one-hot per channel (index channel·25 + cell), the agent's cell at 12,
+then the carried object one-hot."""
 
 
 def completion_windows(policy, completions_wanted: int, before: int, seed: int = 0
@@ -91,11 +94,6 @@ def value_profile(policy, windows: np.ndarray, actions: np.ndarray, random_state
     return lines
 
 
-VIEW_CELLS, CENTRE = 25, 12
-"""The grid tasks' observation: a 5×5 view one-hot per channel (index channel·25 + cell), the agent's cell at 12,
-then the carried object one-hot."""
-
-
 def counterfactual_lines(policy, windows: np.ndarray, actions: np.ndarray) -> list[str]:
     """Lines comparing, at k = 0, the completing action's advantage and the greedy value of the states as seen
     with the same states with the agent's own cell emptied, or with its hands emptied: whether the network ties
@@ -128,6 +126,9 @@ def main() -> None:
     for path in args.policies:
         policy = load_policy(path)
         cfg = policy.cfg.env
+        if get_task(cfg.task).metric != "success":
+            parser.error(f"{path} is a {cfg.task} policy: that task has no completions to look before; "
+                         "give a grid task's policy")
         print(f"\n{path} (seed {policy.seed}; {cfg.task}, p {cfg.dynamism}, "
               f"{'reset-free' if cfg.reset_free else 'episodic'}, {cfg.reward}, {cfg.env_kwargs or ''})")
         windows, actions, random_states = completion_windows(policy, args.completions, args.before)
