@@ -4,12 +4,15 @@ numba compiles a kernel at its first call and caches the machine code beside its
 (``__pycache__/*.nbi``, ``*.nbc``), which any later process loads in milliseconds. In a fresh clone nothing is
 cached yet, so every process compiles the kernels it calls itself: the two workers of `make test` each paid
 about a minute on a 2-core machine. This trains every task for one short epoch, with one and with two
-environment threads, and evaluates it, which calls each kernel the trainer and the environments use.
+environment threads (one alone where numba's pool holds one thread: a single-CPU machine, container or job), and
+evaluates it, which calls each kernel the trainer and the environments use.
 """
 
 from __future__ import annotations
 
 import time
+
+import numba
 
 from train.config import TrainConfig
 from train.tasks import TASKS
@@ -25,7 +28,7 @@ def warm_up() -> float:
     """Train and evaluate every task once (compiling and caching its kernels); return the seconds taken."""
     began = time.perf_counter()
     for task in TASKS:
-        for env_threads in (1, 2):
+        for env_threads in range(1, min(2, numba.config.NUMBA_NUM_THREADS) + 1):  # one CPU: no threaded kernels
             trainer = Trainer(WARMUP.replace(task=task, dynamism=0.1, env_threads=env_threads))
             trainer.train_epoch()
             trainer.evaluate()

@@ -37,3 +37,31 @@ def test_after_the_warm_up_the_environments_compile_nothing(tmp_path):
     assert after.returncode == 0, after.stderr[-2000:]
     assert "data loaded" in after.stdout
     assert [line for line in after.stdout.splitlines() if "data saved" in line] == []
+
+
+def test_the_warm_up_asks_for_no_more_environment_threads_than_numba_holds(monkeypatch):
+    """One CPU (a 1-core VM, a container or a cluster job pinned to one core): numba's pool holds one thread, and
+    `make setup` must not ask for two.
+    """
+    import numba
+
+    from train import warmup
+
+    asked = []
+
+    class Recorder:
+        def __init__(self, cfg):
+            asked.append((cfg.env.task, cfg.run.env_threads))
+
+        def train_epoch(self): ...
+        def evaluate(self): ...
+        def close(self): ...
+
+    monkeypatch.setattr(warmup, "Trainer", Recorder)
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 1)
+    warmup.warm_up()
+    assert {threads for _, threads in asked} == {1} and len(asked) == len(warmup.TASKS)
+    asked.clear()
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 16)
+    warmup.warm_up()
+    assert sorted({threads for _, threads in asked}) == [1, 2] and len(asked) == 2 * len(warmup.TASKS)
