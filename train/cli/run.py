@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
 
 from train.cli.common import DEFAULT_OUT, check_out_dir, minutes, nonnegative, positive, relative, user_errors
 from train.experiments.catalog import BUDGETS, EXPERIMENTS, get_experiment
+from train.experiments.executors import usable_cpus
 
 
 def add_parser(subparsers) -> argparse.ArgumentParser:
@@ -42,7 +42,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "Every node must see --out at the same path.")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"results directory (default: {DEFAULT_OUT})")
     parser.add_argument("--jobs", type=positive, default=None,
-                        help="local processes running at once (default: the number of CPU cores)")
+                        help="local processes running at once (default: the CPU cores this process may use)")
     parser.add_argument("--pack", action="store_true",
                         help="train the conditions of a task that share their settings (all but the env knobs, "
                              "learning rate, exploration and RND flag) packed: one batched update for many; on "
@@ -114,7 +114,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     if args.minutes is not None:
         from train.experiments.timebox import timebox
 
-        jobs = timebox(jobs, args.minutes * 60 - (time.monotonic() - began), args.jobs or os.cpu_count() or 1,
+        jobs = timebox(jobs, args.minutes * 60 - (time.monotonic() - began), args.jobs or usable_cpus(),
                        lambda line: print(line, file=sys.stderr), asked_seconds=args.minutes * 60)
     train, copies = _twins(exp, jobs, args)
     if args.dry_run:
@@ -164,7 +164,7 @@ def _check_out_and_device(args: argparse.Namespace) -> None:
 def _packing(args: argparse.Namespace) -> int:
     """How `run_jobs` packs: 0 not at all, else into up to this many processes (one on a GPU)."""
     gpu = (args.device or "cpu").startswith("cuda")
-    return 1 if gpu else (args.jobs or os.cpu_count() or 1) if args.pack else 0
+    return 1 if gpu else (args.jobs or usable_cpus()) if args.pack else 0
 
 
 def _print_dry_run(jobs: list, args: argparse.Namespace) -> None:

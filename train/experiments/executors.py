@@ -20,6 +20,16 @@ from contextlib import contextmanager
 from train.experiments.jobs import Job, JobResult, Pack, execute_unit
 from train.runlog import request_stop, stop_requested
 
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on: its affinity set where the OS gives one (a cluster job or container
+    pinned to 4 of a node's 64 cores gets 4), else the machine's count.
+    """
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
 _STOP = None
 """In a local worker process: the sweep's stop event (set when the user interrupts the sweep)."""
 

@@ -19,7 +19,6 @@ stood.
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from collections.abc import Iterable, Sequence
@@ -30,7 +29,7 @@ from typing import Any
 
 from train.config import TrainConfig
 from train.experiments.catalog import Experiment, job_config
-from train.experiments.executors import run_local, run_ray
+from train.experiments.executors import run_local, run_ray, usable_cpus
 from train.experiments.jobs import Job, JobResult, Pack, job_is_done
 from train.storage.checkpoint import CHECKPOINT_NAME
 from train.storage.fileio import atomic_text
@@ -230,7 +229,7 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
             pass
         elif executor == "local":
             with monitor if progress else _nothing():
-                results += run_local(todo, workers or os.cpu_count() or 1, on_result)
+                results += run_local(todo, workers or usable_cpus(), on_result)
         else:
             with monitor if progress else _nothing():
                 results += run_ray(todo, address, on_result)

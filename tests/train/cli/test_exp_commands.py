@@ -366,3 +366,19 @@ def test_dry_run_says_a_stopped_run_past_the_steps_asked_for_will_fail(capsys, t
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("[ clash] headline/salad/static-episodic")
     assert "stands at step 2200, beyond the 1200 steps asked for" in out[1]
+
+
+def test_local_processes_default_to_the_cpus_this_process_may_use(monkeypatch):
+    """A cluster job or container pinned to 4 of a node's 64 cores runs 4 local processes, not 64."""
+    import os
+
+    from train.cli.run import _packing
+    from train.experiments import executors
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2, 3}, raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+    assert executors.usable_cpus() == 4
+    args = argparse.Namespace(device=None, jobs=None, pack=True)
+    assert _packing(args) == 4 and _packing(argparse.Namespace(device=None, jobs=2, pack=True)) == 2
+    monkeypatch.delattr(os, "sched_getaffinity")
+    assert executors.usable_cpus() == 64
