@@ -127,7 +127,7 @@ BAD_INPUTS = [
     (["--eval-epsilon", "7"], "--eval-epsilon must be a finite number in [0, 1], got 7.0"),
     (["--grad-clip", "-1"], "--grad-clip must be a finite number > 0, got -1.0"),
     (["--view-layers", "0"], "--view-layers must be one or more layer widths >= 1"),
-    (["--steps", "abc"], "argument --steps: invalid int value: 'abc'"),
+    (["--steps", "abc"], "argument --steps: expected an integer, got abc"),
 ]
 
 
