@@ -67,24 +67,31 @@ def completion_windows(policy, completions_wanted: int, before: int, seed: int =
     return np.stack(windows), np.asarray(actions), np.stack(random_states)
 
 
+def q_values(policy, obs: np.ndarray) -> np.ndarray:
+    """The policy's Q-values of observations (..., obs_dim), shaped (..., actions)."""
+    flat = torch.from_numpy(obs.reshape(1, -1, obs.shape[-1]).astype(np.float32))
+    return policy.q_values(flat)[0].numpy().reshape(*obs.shape[:-1], -1)
+
+
+def advantage(q: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """Per row of ``q`` (N, actions): the Q of ``actions`` (N,) minus the best other action's."""
+    others = np.where(np.arange(q.shape[-1]) == actions[:, None], -np.inf, q).max(-1)
+    return q[np.arange(len(q)), actions] - others
+
+
 def value_profile(policy, windows: np.ndarray, actions: np.ndarray, random_states: np.ndarray) -> list[str]:
     """Lines of the printed table: per k, mean greedy value, mean Q of the taken action, share above random."""
-    def q(obs: np.ndarray) -> np.ndarray:
-        flat = torch.from_numpy(obs.reshape(1, -1, obs.shape[-1]).astype(np.float32))
-        return policy.q_values(flat)[0].numpy().reshape(*obs.shape[:-1], -1)
-
-    q_windows, q_random = q(windows), q(random_states)
+    q_windows, q_random = q_values(policy, windows), q_values(policy, random_states)
     values, random_values = q_windows.max(-1), q_random.max(-1)
     taken = np.take_along_axis(q_windows, actions[..., None], -1)[..., 0]
     before = windows.shape[1] - 1
     last, completing = q_windows[:, -1], actions[:, -1]
     greedy_last = (last.argmax(-1) == completing).mean()
-    others = np.where(np.arange(last.shape[-1]) == completing[:, None], -np.inf, last).max(-1)
-    advantage = np.take_along_axis(last, completing[:, None], -1)[:, 0] - others
+    edge = advantage(last, completing)
     lines = [f"random states: greedy value {random_values.mean():.2f} (median {np.median(random_values):.2f})",
              f"k = 0: the completing action is greedy in {greedy_last:.0%} of {len(windows)} completions; its Q minus "
-             f"the best other action's: median {np.median(advantage):+.2f} "
-             f"[quartiles {np.quantile(advantage, 0.25):+.2f}, {np.quantile(advantage, 0.75):+.2f}]",
+             f"the best other action's: median {np.median(edge):+.2f} "
+             f"[quartiles {np.quantile(edge, 0.25):+.2f}, {np.quantile(edge, 0.75):+.2f}]",
              "   k   max_a Q   Q(taken)   above random"]
     for k in (0, 1, 2, 3, 5, 10, 15, 20):
         if k <= before:
@@ -99,7 +106,7 @@ def counterfactual_lines(policy, windows: np.ndarray, actions: np.ndarray) -> li
     with the same states with the agent's own cell emptied, or with its hands emptied: whether the network ties
     the value to the state or to the action that completes the task.
     """
-    states, completing = windows[:, -1].astype(np.float32), actions[:, -1]
+    states, completing = windows[:, -1], actions[:, -1]
     view_dim = probe(get_task(policy.cfg.env.task), policy.cfg.env).view_dim
     centre_cells = CENTRE + VIEW_CELLS * np.arange(view_dim // VIEW_CELLS)
     emptied_centre = states.copy()
@@ -109,10 +116,8 @@ def counterfactual_lines(policy, windows: np.ndarray, actions: np.ndarray) -> li
     emptied_hands[:, view_dim:] = 0.0
     lines = ["k = 0 states        completing action's advantage (median)   greedy value (median)"]
     for name, obs in (("as seen", states), ("own cell emptied", emptied_centre), ("hands emptied", emptied_hands)):
-        q = policy.q_values(torch.from_numpy(obs)[None])[0].numpy()
-        others = np.where(np.arange(q.shape[-1]) == completing[:, None], -np.inf, q).max(-1)
-        advantage = q[np.arange(len(q)), completing] - others
-        lines.append(f"{name:18s} {np.median(advantage):+20.2f} {np.median(q.max(-1)):28.2f}")
+        q = q_values(policy, obs)
+        lines.append(f"{name:18s} {np.median(advantage(q, completing)):+20.2f} {np.median(q.max(-1)):28.2f}")
     return lines
 
 
