@@ -37,15 +37,13 @@ TABLE_FIELDS = ("condition", "mean", "std", "seeds", "censored")
 def hitting_conditions(task: str) -> dict[str, dict[str, Any]]:
     """The reset-free, sparse-reward training envs the hitting-time table compares: knobs by condition.
 
-    Dynamic is the task's dynamic p of the experiments. Shaped is the start of the task's shaping
-    schedule (the factory's cooperative workers at strength 0.2, the original code's approach
-    probability; at strength 1 workers crowd the agent and the hitting time grows), on the shaping
-    experiments' base dynamism where they grow ingredients (salad p = 0.05: with p = 0 nothing spawns
-    before the first completion, so shaping could not act).
+    Dynamic is the task's dynamic p of the experiments. Shaped is the world the shaping experiments train in
+    (`SHAPING_BASE`: salad's ingredients growing at p = 0.05, hunting's hard deer fleeing at 0.2) at the start
+    of the task's shaping schedule (the factory's cooperative workers at strength 0.2, the original code's
+    approach probability; at strength 1 workers crowd the agent and the hitting time grows).
     """
-    shaped = {"shaping": parse_schedule(SHAPING_SCHEDULE[task])(0)}
-    if "dynamism" in SHAPING_BASE[task]:
-        shaped = {"dynamism": SHAPING_BASE[task]["dynamism"], **shaped}
+    base = dict(SHAPING_BASE[task])
+    shaped = {**base.pop("env_kwargs", {}), **base, "shaping": parse_schedule(SHAPING_SCHEDULE[task])(0)}
     return {"static": {}, "dynamic": {"dynamism": DYNAMIC_P[task]}, "shaped": shaped}
 
 
