@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
+from gymnasium.vector import AutoresetMode
 
 from ecology.knobs import TEST_MDP, Ecology
 from ecology.measure import corner_cells
@@ -106,6 +107,19 @@ def check_reset_mask(options: Mapping[str, Any] | None, num_envs: int, at_least_
         raise ValueError(f"options['reset_mask'] must be a boolean array of shape ({num_envs},){need}, got dtype "
                          f"{mask.dtype}, shape {mask.shape}")
     return mask
+
+
+def check_autoreset_mode(mode) -> AutoresetMode:
+    """``mode`` as an `AutoresetMode` (a member, its value such as ``"SameStep"``, or its name such as
+    ``"same_step"``), or a one-line ValueError naming the three.
+    """
+    if isinstance(mode, AutoresetMode):
+        return mode
+    for member in AutoresetMode:
+        if isinstance(mode, str) and mode.lower() in (member.value.lower(), member.name.lower()):
+            return member
+    choices = ", ".join(f"AutoresetMode.{m.name}" for m in AutoresetMode)
+    raise ValueError(f"autoreset_mode must be one of {choices} (gymnasium.vector.AutoresetMode), got {mode!r}")
 
 
 def render_mode_missing(render_mode: str | None) -> bool:

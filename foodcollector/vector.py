@@ -17,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode, SyncVectorEnv, VectorEnv
 
-from ecology import check_reset_mask, render_mode_missing
+from ecology import check_autoreset_mode, check_reset_mask, render_mode_missing
 from foodcollector import ENV_ID
 
 
@@ -28,15 +28,18 @@ def _check_count(name: str, value: Any) -> int:
     return int(value)
 
 
-def make_vector_env(num_envs: int, workers: int = 1, **kwargs: Any) -> VectorEnv:
-    """``num_envs`` food collector worlds (next-step autoreset), on ``workers`` processes; ``kwargs`` go to
-    every world as to ``gymnasium.make``. ``workers=1``: the plain in-process ``SyncVectorEnv``.
+def make_vector_env(num_envs: int, workers: int = 1, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+                    **kwargs: Any) -> VectorEnv:
+    """``num_envs`` food collector worlds on ``workers`` processes, resetting as ``autoreset_mode`` says
+    (`gymnasium.vector.AutoresetMode`, next-step by default); ``kwargs`` go to every world as to
+    ``gymnasium.make``. ``workers=1``: the plain in-process ``SyncVectorEnv``.
     """
     _check_count("num_envs", num_envs)
     _check_count("workers", workers)
+    mode = check_autoreset_mode(autoreset_mode)
     if workers == 1:
-        return SyncVectorEnv([lambda: gym.make(ENV_ID, **kwargs) for _ in range(num_envs)])
-    return FoodCollectorVectorEnv(num_envs, workers, **kwargs)
+        return SyncVectorEnv([lambda: gym.make(ENV_ID, **kwargs) for _ in range(num_envs)], autoreset_mode=mode)
+    return FoodCollectorVectorEnv(num_envs, workers, autoreset_mode=mode, **kwargs)
 
 
 def _chunk_sizes(num_envs: int, workers: int) -> list[int]:
@@ -45,11 +48,11 @@ def _chunk_sizes(num_envs: int, workers: int) -> list[int]:
     return [num_envs // workers + (i < num_envs % workers) for i in range(workers)]
 
 
-def _worker(conn, num_envs: int, kwargs: dict) -> None:
+def _worker(conn, num_envs: int, autoreset_mode: AutoresetMode, kwargs: dict) -> None:
     """A worker process: a ``SyncVectorEnv`` of its chunk, driven by (command, argument) messages."""
     import foodcollector  # noqa: F401 (registers the id in a spawned process)
 
-    env = make_vector_env(num_envs, 1, **kwargs)
+    env = make_vector_env(num_envs, 1, autoreset_mode, **kwargs)
 
     def reset(arg):
         seeds, options = arg
@@ -94,18 +97,29 @@ def merge_infos(parts: list[dict], sizes: list[int]) -> dict:
     merged: dict[str, Any] = {}
     keys = dict.fromkeys(k for part in parts for k in part if not k.startswith("_"))
     for key in keys:
-        template = next(np.asarray(part[key]) for part in parts if key in part)
-        values = [np.asarray(part[key]) if key in part else np.zeros((n, *template.shape[1:]), template.dtype)
-                  for part, n in zip(parts, sizes)]
         masks = [np.asarray(part.get(f"_{key}", np.zeros(n, dtype=bool))) for part, n in zip(parts, sizes)]
-        merged[key], merged[f"_{key}"] = np.concatenate(values), np.concatenate(masks)
+        merged[f"_{key}"] = np.concatenate(masks)
+        if any(isinstance(part.get(key), dict) for part in parts):  # final_info: a nested info, merged alike
+            merged[key] = merge_infos([part.get(key, {}) for part in parts], sizes)
+            continue
+        template = next(np.asarray(part[key]) for part in parts if key in part)
+        merged[key] = np.concatenate([np.asarray(part[key]) if key in part else _unset(template, n)
+                                      for part, n in zip(parts, sizes)])
     return merged
+
+
+def _unset(template: np.ndarray, n: int) -> np.ndarray:
+    """``n`` unset entries of an info array like ``template``: None in an object array (``final_obs``), else 0."""
+    if template.dtype == object:
+        return np.full(n, None, dtype=object)
+    return np.zeros((n, *template.shape[1:]), template.dtype)
 
 
 class FoodCollectorVectorEnv(VectorEnv):
     """Food collector worlds in ``workers`` processes (see the module docstring); make it with `make_vector_env`.
 
-    ``reset(seed=s)`` seeds world i with ``s + i`` (or ``seed[i]`` given a list), as ``SyncVectorEnv`` does.
+    ``reset(seed=s)`` seeds world i with ``s + i`` (or ``seed[i]`` given a list), as ``SyncVectorEnv`` does, and
+    ``autoreset_mode`` is ``SyncVectorEnv``'s, with the same infos (``final_obs`` and ``final_info`` included).
     The workers start from a clean server process (``context="forkserver"``, the default), which does not
     copy the parent's threads; like every non-fork start, it imports the main script, so a script that makes
     this env runs its code under ``if __name__ == "__main__":``.
@@ -115,9 +129,12 @@ class FoodCollectorVectorEnv(VectorEnv):
 
     metadata: ClassVar[dict] = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int, workers: int, context: str = "forkserver", **kwargs: Any):
+    def __init__(self, num_envs: int, workers: int, context: str = "forkserver",
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs: Any):
         _check_count("num_envs", num_envs)
         _check_count("workers", workers)
+        self.autoreset_mode = check_autoreset_mode(autoreset_mode)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         probe = gym.make(ENV_ID, **kwargs)
         self.single_observation_space, self.single_action_space = probe.observation_space, probe.action_space
         self.render_mode = probe.render_mode
@@ -131,7 +148,7 @@ class FoodCollectorVectorEnv(VectorEnv):
         self._conns, self._procs = [], []
         for n in self.sizes:
             parent, child = ctx.Pipe()
-            proc = ctx.Process(target=_worker, args=(child, n, kwargs), daemon=True)
+            proc = ctx.Process(target=_worker, args=(child, n, self.autoreset_mode, kwargs), daemon=True)
             proc.start()
             child.close()
             self._conns.append(parent)

@@ -9,7 +9,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ecology import Ecology, check_reset_mask
+from ecology import Ecology, check_autoreset_mode, check_reset_mask
 from gridtasks import engine
 from gridtasks.batch import (
     StepBuffers,
@@ -31,7 +31,7 @@ def _is_int(value) -> bool:
 
 
 class GridTaskVectorEnv(VectorEnv):
-    """Many worlds of one grid task stepped by one compiled call (Gymnasium next-step autoreset).
+    """Many worlds of one grid task stepped by one compiled call (Gymnasium next-step autoreset by default).
 
     ``reset(seed=s)`` seeds world i with ``s + i`` (or with ``seed[i]`` given a list); world i then
     follows exactly the trajectory of ``gymnasium.make(id)`` reset with that seed under the same actions.
@@ -43,14 +43,23 @@ class GridTaskVectorEnv(VectorEnv):
     threads slow each call down (``benchmarks/bench_gridtasks.py --threads N`` measures the ratio; with
     numba's OpenMP layer, ``OMP_WAIT_POLICY=passive`` limits the loss). Trainers that step in a hot loop can
     call `step_arrays`, which skips the info dict.
+
+    ``autoreset_mode`` (`gymnasium.vector.AutoresetMode`, passed to ``make_vec`` as a keyword) chooses what
+    follows an episode's end, as ``SyncVectorEnv`` does: ``NEXT_STEP`` (default) resets the world on the next
+    step, which returns reward 0 and ignores its action; ``SAME_STEP`` resets it at once, returning the reset
+    observation and info, the last ones in ``info["final_obs"]`` and ``info["final_info"]`` (masks
+    ``"_final_obs"``, ``"_final_info"``); ``DISABLED`` leaves the reset to you (``reset(options={"reset_mask":
+    ...})``), and stepping an ended world is an error. Reset-free worlds never end, so the modes agree there.
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 8,
                                 "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, env_class: type[GridTaskEnv], num_envs: int, copy: bool = True, threads: int = 1,
-                 **kwargs):
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, **kwargs):
         check_positive_int("num_envs", num_envs)
+        self.autoreset_mode = check_autoreset_mode(autoreset_mode)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         check_flag("copy", copy)
         self.threads = check_threads(threads)
         self.template = env_class(**kwargs)
@@ -126,8 +135,19 @@ class GridTaskVectorEnv(VectorEnv):
     def step(self, actions):
         """Step all worlds. Returns batched (obs, rewards, terminated, truncated, info)."""
         b = self._step_all(actions, "step")
-        return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
-                self._info())
+        ended = b.terminated | b.truncated
+        if self.autoreset_mode != AutoresetMode.SAME_STEP or not ended.any():
+            return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
+                    self._info())
+        final_obs = np.full(self.num_envs, None, dtype=object)  # one array per ended world, as Sync gives
+        for i in np.flatnonzero(ended):
+            final_obs[i] = b.obs[i].copy()
+        final_info = self._info()
+        reset_batch(self._state, self.rules, ended, b.obs, self.threads)
+        info = self._info(solved=b.solved & ~ended, caught=b.caught & ~ended)  # the reset worlds' info is their reset's
+        info.update(final_obs=final_obs, _final_obs=ended.copy(), _final_info=ended.copy(),
+                    final_info=_masked(final_info, ended))
+        return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated), info)
 
     def step_arrays(self, actions) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """`step` without the info dict, for a trainer's hot loop: the same worlds, the same numbers.
@@ -138,6 +158,9 @@ class GridTaskVectorEnv(VectorEnv):
         buffers, overwritten by the next call. ``info["solved"]`` and ``info["caught"]`` of the same step are
         `last_solved` and `last_caught`. Call it on the env itself (``vec.unwrapped``), not a wrapper.
         """
+        if self.autoreset_mode == AutoresetMode.SAME_STEP:
+            raise RuntimeError("step_arrays() returns no final observation, which autoreset_mode SAME_STEP needs: "
+                               "call step(), or make the env with NEXT_STEP or DISABLED")
         b = self._step_all(actions, "step_arrays")
         return (self._out(b.obs), self._out(b.rewards), self._out(b.terminated), self._out(b.truncated),
                 self._state["agent"].copy())
@@ -148,7 +171,11 @@ class GridTaskVectorEnv(VectorEnv):
             raise RuntimeError(f"call reset() before {caller}()")
         b = self._buffers
         b.actions[:] = check_actions(actions, self.num_envs)
-        step_batch(self._state, self.rules, b, True, self.threads)
+        if self.autoreset_mode == AutoresetMode.DISABLED and self._state["needs_reset"].any():
+            ended = np.flatnonzero(self._state["needs_reset"]).tolist()
+            raise RuntimeError(f"world(s) {ended} ended on an earlier step and autoreset_mode is DISABLED: reset "
+                               f"them with reset(options={{'reset_mask': ...}}) before {caller}()")
+        step_batch(self._state, self.rules, b, self.autoreset_mode == AutoresetMode.NEXT_STEP, self.threads)
         return b
 
     @property
@@ -164,10 +191,13 @@ class GridTaskVectorEnv(VectorEnv):
     def _out(self, array: np.ndarray) -> np.ndarray:
         return array.copy() if self.copy else array
 
-    def _info(self) -> dict:
+    def _info(self, solved: np.ndarray | None = None, caught: np.ndarray | None = None) -> dict:
+        """The batched info of every world's current state; ``solved`` and ``caught`` default to the last step's."""
         s = self._state
         products = list(self.template.products)
-        return {"solved": self.last_solved, "caught": self.last_caught, "agent_pos": s["agent"].astype(np.int64),
+        solved = self.last_solved if solved is None else solved
+        caught = self.last_caught if caught is None else caught
+        return {"solved": solved, "caught": caught, "agent_pos": s["agent"].astype(np.int64),
                 "lifetime_step": s["lifetime_step"].copy(), "completions": s["completions"].copy(),
                 **{f"pickup_{NAMES[code]}": s["pickups"][:, code].copy() for code in self.template.counted},
                 **{f"made_{NAMES[code]}": s["made"][:, code].copy() for code in products},
@@ -180,3 +210,14 @@ class GridTaskVectorEnv(VectorEnv):
         if not can_render(self.render_mode, self._seeded):
             return None
         return tuple(render_world(w, self.rules[0], self.template.channels) for w in self._state)
+
+
+def _masked(info: dict, mask: np.ndarray) -> dict:
+    """``info`` as ``SyncVectorEnv`` gathers it from the worlds in ``mask``: each value zero elsewhere, with its
+    ``_key`` mask.
+    """
+    out = {}
+    for key, value in info.items():
+        out[key] = np.where(mask.reshape(-1, *[1] * (value.ndim - 1)), value, 0).astype(value.dtype)
+        out[f"_{key}"] = mask.copy()
+    return out

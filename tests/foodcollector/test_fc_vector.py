@@ -94,3 +94,27 @@ def test_a_reset_mask_and_render_work_across_workers_as_in_one_process():
         vec.close()
     np.testing.assert_array_equal(outs[0], outs[1])
     np.testing.assert_array_equal(outs[2], outs[3])
+
+
+def test_same_step_autoreset_across_workers_equals_one_process():
+    """``autoreset_mode`` was next-step only; a worker chunk's final_info (a nested dict) could not be merged."""
+    mode, num, knobs = gymnasium.vector.AutoresetMode.SAME_STEP, 3, {**KNOBS, "horizon": 15}
+    actions = np.random.default_rng(4).integers(0, foodcollector.NUM_ACTIONS, (40, num))
+    with foodcollector.make_vector_env(num, workers=2, autoreset_mode="same_step", **knobs) as par:
+        one = foodcollector.make_vector_env(num, autoreset_mode=mode, **knobs)
+        assert par.metadata["autoreset_mode"] == one.metadata["autoreset_mode"] == mode
+        assert_same(par.reset(seed=3), one.reset(seed=3), "reset")
+        finals = 0
+        for t, a in enumerate(actions):
+            got, want = par.step(a), one.step(a)
+            finals += int(want[4].get("_final_obs", np.zeros(num, dtype=bool)).sum())
+            *arrays, info = got
+            assert_same(tuple(arrays), want[:4], f"decision {t}")
+            assert info.keys() == want[4].keys(), f"info keys at decision {t}"
+            for key in info:
+                if key == "final_obs":  # an object array: one observation or None per world
+                    for x, y in zip(info[key], want[4][key]):
+                        assert (x is None and y is None) or np.array_equal(x, y), f"final_obs at decision {t}"
+                else:
+                    assert_same(info[key], want[4][key], f"info {key} at decision {t}")
+        assert finals == 2 * num  # every world's 15-decision episode ended twice in 40 decisions

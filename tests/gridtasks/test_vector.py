@@ -182,3 +182,52 @@ def test_a_none_seed_continues_that_worlds_life_and_a_reset_clears_solved_and_ca
     np.testing.assert_array_equal(outs["vector_entry_point"][0], outs["sync"][0])
     np.testing.assert_array_equal(outs["vector_entry_point"][1], outs["sync"][1])
     assert outs["sync"][1][1] == 0 and outs["sync"][1][0] > 0
+
+
+@pytest.mark.parametrize("mode", [gym.vector.AutoresetMode.SAME_STEP, gym.vector.AutoresetMode.DISABLED])
+def test_every_autoreset_mode_steps_as_sync_does(mode):
+    """``make_vec(..., autoreset_mode=...)`` was refused as an unknown task parameter: next-step only."""
+    knobs = {"dynamism": 0.3, "horizon": 6}
+    num, steps = 4, 40
+    envs = {"batched": gym.make_vec("gridtasks/Salad-v0", num_envs=num, vectorization_mode="vector_entry_point",
+                                    autoreset_mode=mode, **knobs),
+            "sync": gym.make_vec("gridtasks/Salad-v0", num_envs=num, vectorization_mode="sync",
+                                 vector_kwargs={"autoreset_mode": mode}, **knobs)}
+    assert envs["batched"].metadata["autoreset_mode"] == mode
+    actions = np.random.default_rng(2).integers(0, 7, (steps, num))
+    outs = {name: [vec.reset(seed=5)[0]] for name, vec in envs.items()}
+    ended_worlds = 0
+    for t in range(steps):
+        for name, vec in envs.items():
+            obs, rew, term, trunc, info = vec.step(actions[t])
+            outs[name].append((obs, rew, term, trunc, info["solved"], info["lifetime_step"]))
+            ended = term | trunc
+            if mode == gym.vector.AutoresetMode.SAME_STEP and ended.any():
+                np.testing.assert_array_equal(info["_final_obs"], ended)
+                np.testing.assert_array_equal(info["final_info"]["_solved"], ended)
+                outs[name].append((np.stack(info["final_obs"][ended]), info["final_info"]["solved"],
+                                   info["final_info"]["completions"]))
+            if mode == gym.vector.AutoresetMode.DISABLED and ended.any():
+                outs[name].append(vec.reset(options={"reset_mask": ended})[0])
+        ended_worlds += int(ended.sum())
+    assert ended_worlds >= num  # every world's 6-step episodes ended several times
+    for got, want in zip(outs["batched"], outs["sync"], strict=True):
+        for a, b in zip(got, want, strict=True) if isinstance(got, tuple) else [(got, want)]:
+            np.testing.assert_array_equal(a, b)
+
+
+def test_a_disabled_autoreset_refuses_to_step_an_ended_world_and_modes_are_checked():
+    vec = gym.make_vec("gridtasks/Hunting-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                       autoreset_mode="disabled", horizon=1)
+    vec.reset(seed=0)
+    vec.step(np.zeros(2, dtype=int))
+    with pytest.raises(RuntimeError, match=r"world\(s\) \[0, 1\] ended .*reset_mask"):
+        vec.step(np.zeros(2, dtype=int))
+    same = gym.make_vec("gridtasks/Hunting-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                        autoreset_mode="SameStep")
+    same.reset(seed=0)
+    with pytest.raises(RuntimeError, match="step_arrays.*SAME_STEP"):
+        same.unwrapped.step_arrays(np.zeros(2, dtype=int))
+    with pytest.raises(ValueError, match="autoreset_mode must be one of AutoresetMode.NEXT_STEP"):
+        gym.make_vec("gridtasks/Hunting-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     autoreset_mode="same")
