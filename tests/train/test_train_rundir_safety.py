@@ -169,6 +169,14 @@ def test_out_under_a_file_names_the_file(command, finished, tmp_path, capsys):
     assert target.read_text() == "mine"
 
 
+def test_an_unusable_out_names_the_path_and_what_to_check(tmp_path, capsys):
+    """Used to print Python's '[Errno 36] File name too long: ...' as the whole message."""
+    out = tmp_path / ("x" * 300)
+    assert main(["train", "salad", "--steps", "400", "--out", str(out)]) == 2
+    assert _one_line_error(capsys).endswith(f"error: cannot use {out}: File name too long; check the path, its "
+                                            f"permissions and the free disk space, or choose another path")
+
+
 # ---- TensorBoard after a resume ------------------------------------------------------------------------
 
 

@@ -51,7 +51,15 @@ def user_errors(*kinds: type[BaseException]) -> Iterator[None]:
     try:
         yield
     except kinds as err:
-        raise UserError(" ".join(str(err).split())) from err
+        raise UserError(_one_line(err)) from err
+
+
+def _one_line(err: BaseException) -> str:
+    """``err``'s message on one line; an operating-system error names its path, its cause and what to check."""
+    if isinstance(err, OSError) and err.errno is not None and err.filename is not None:
+        return (f"cannot use {err.filename}: {err.strerror}; check the path, its permissions and the free disk "
+                f"space, or choose another path")
+    return " ".join(str(err).split())
 
 
 def relative(path: Path) -> Path:
