@@ -11,6 +11,7 @@ Add a subcommand by writing such a module and listing it in `COMMANDS`.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -58,6 +59,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UserError as err:
         print(f"ecorl {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader of stdout left (``ecorl run --list | head``): stop quietly, as Unix tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so that exit's flush does not fail again
+        return 141
     except KeyboardInterrupt:  # Ctrl-C where a command has no stop of its own (training checkpoints first)
         print(f"ecorl {args.command}: interrupted", file=sys.stderr)
         return 130

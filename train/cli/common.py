@@ -51,6 +51,8 @@ def user_errors(*kinds: type[BaseException]) -> Iterator[None]:
     try:
         yield
     except kinds as err:
+        if isinstance(err, BrokenPipeError):  # stdout's reader left: `train.cli.main` stops quietly
+            raise
         raise UserError(_one_line(err)) from err
 
 

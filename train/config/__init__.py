@@ -268,8 +268,11 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         if self.eval.eval_every % self.dqn.epoch_steps:
-            raise ValueError(f"eval_every ({self.eval.eval_every}) must be a multiple of epoch_steps "
-                             f"({self.dqn.epoch_steps})")
+            epoch = self.dqn.epoch_steps
+            nearest = max(round(self.eval.eval_every / epoch), 1) * epoch
+            raise ValueError(f"eval_every ({self.eval.eval_every}) must be a multiple of epoch_steps ({epoch}), "
+                             f"evaluations falling at epoch ends; give --eval-every {nearest} or change "
+                             f"--epoch-steps")
 
     def check_trains(self) -> None:
         """Raise ValueError if the run would train nothing (its warm-up takes every step)."""

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
 
 import pytest
 
@@ -187,3 +190,18 @@ def test_a_value_of_the_wrong_type_gets_the_choices_without_a_hint():
         TrainConfig(dqn=DQNConfig(init=7))
     with pytest.raises(ValueError, match=r"^init must be one of rlkit, torch, got 'rlkt'; did you mean rlkit\?$"):
         TrainConfig(dqn=DQNConfig(init="rlkt"))
+
+
+def test_a_reader_that_leaves_early_stops_the_command_quietly():
+    """``ecorl run --list | head -1`` printed 'error: [Errno 32] Broken pipe; check the path, its permissions ...'."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # the reader has gone before the first line
+    done = subprocess.run([sys.executable, "-m", "train.cli", "run", "--list"], stdout=write_end,
+                          stderr=subprocess.PIPE, text=True, timeout=120)
+    os.close(write_end)
+    assert (done.returncode, done.stderr) == (141, "")
+
+
+def test_an_eval_every_off_the_epochs_names_a_value_that_fits(capsys):
+    assert main(["train", "salad", "--steps", "1200", "--eval-every", "1400"]) == 2
+    assert capsys.readouterr().err.strip().endswith("give --eval-every 1500 or change --epoch-steps")
