@@ -168,12 +168,14 @@ class GridTaskEnv(gym.Env):
         # Reset fills the grid before it draws the agent's cell (and the predators'): with no cell left
         # for them it would put the agent off the grid or search forever.
         free = int((r["layout"] == Code.EMPTY).sum())
-        needed = int(r["initial"].sum()) + 1 + (1 if r["num_predators"] else 0)
+        objects = int(r["initial"].sum())
+        needed = objects + 1 + (1 if r["num_predators"] else 0)
         if needed > free:
-            who = "the agent and a predator" if r["num_predators"] else "the agent"
-            raise ValueError(f"{type(self).__name__} places {int(r['initial'].sum())} objects at reset, but its "
-                             f"{self.config.grid_size}x{self.config.grid_size} grid has {free} free cells, "
-                             f"{needed} with {who}; lower the object counts or raise grid_size")
+            what = f"{objects} objects, the agent and a predator" if r["num_predators"] else \
+                f"{objects} objects and the agent"
+            size = self.config.grid_size
+            raise ValueError(f"{type(self).__name__} needs {needed} free cells at reset ({what}), but its "
+                             f"{size}x{size} grid has {free}; lower the object counts or raise grid_size")
 
     def fill_rules(self, r: np.void) -> None:
         """Write the task's tables into the rules record ``r`` (dynamism and shaping included)."""

@@ -152,12 +152,13 @@ def test_task_specific_choices_are_validated():
 
 
 @pytest.mark.parametrize("make, who", [
-    (lambda: gridtasks.SaladEnv(initial_count=18), "the agent;"),  # 36 objects fill the 6x6 interior
-    (lambda: gridtasks.HuntingEnv(deer_count=34, axe_count=2), "the agent;"),
-    (lambda: gridtasks.ScavengingEnv(food_count=63), "the agent and a predator;"),
+    (lambda: gridtasks.SaladEnv(initial_count=18), "37 free cells at reset \\(36 objects and the agent\\)"),
+    (lambda: gridtasks.HuntingEnv(deer_count=34, axe_count=2), "37 free cells .* and the agent\\)"),
+    (lambda: gridtasks.ScavengingEnv(food_count=63),
+     "65 free cells at reset \\(63 objects, the agent and a predator\\)"),
 ])
 def test_more_objects_than_the_grid_holds_are_refused(make, who):
-    with pytest.raises(ValueError, match=f"grid has .* free cells, .* with {who} lower the object counts"):
+    with pytest.raises(ValueError, match=f"needs {who}, but its .* grid has .*; lower the object counts"):
         make()
 
 
