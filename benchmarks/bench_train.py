@@ -68,6 +68,7 @@ def sb3_model():
     """SB3's DQN configured like ecorl, with learning already started (None if SB3 is not installed)."""
     try:
         import stable_baselines3 as sb3
+        from stable_baselines3.common.logger import Logger
         from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
     except ImportError:
         return None
@@ -97,6 +98,7 @@ def sb3_model():
                     target_update_interval=1, exploration_initial_eps=EPSILON, exploration_final_eps=EPSILON,
                     max_grad_norm=5.0, device="cpu", seed=0,
                     policy_kwargs={"features_extractor_class": TwoBranch, "net_arch": [16, 16]})
+    model.set_logger(Logger(folder=None, output_formats=[]))  # else every learn() makes a /tmp/SB3-<time> folder
     model.learn(total_timesteps=700)  # learning starts at step 200: 500 updates of warm-up, untimed
     return model
 
