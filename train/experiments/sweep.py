@@ -148,13 +148,19 @@ def _duration(seconds: float | None) -> str:
     return f"{minutes} min {secs:02d} s" if minutes else f"{secs} s"
 
 
-def progress_line(job: Job, began: float) -> str:
-    """One line on a job: steps done of its total, steps/s, ETA and the last evaluation (from its heartbeat)."""
+def heartbeat(job: Job, began: float) -> dict | None:
+    """The job's last heartbeat, if it wrote one since ``began`` (wall-clock seconds)."""
     from train.runlog import PROGRESS_FILE, read_heartbeat
 
     beat = read_heartbeat(Path(job.run_dir) / PROGRESS_FILE)
+    return None if beat is None or beat.get("time", 0) < began - 1 else beat
+
+
+def progress_line(job: Job, began: float) -> str:
+    """One line on a job: steps done of its total, steps/s, ETA and the last evaluation (from its heartbeat)."""
+    beat = heartbeat(job, began)
     name = f"{job.task}/{job.condition}"
-    if beat is None or beat.get("time", 0) < began - 1:
+    if beat is None:
         return f"  {name}: starting (imports, environment, first epoch)"
     step, total = int(beat["step"]), int(beat.get("total") or 1)
     bar = "#" * round(20 * step / total) + "." * (20 - round(20 * step / total))
@@ -165,13 +171,15 @@ def progress_line(job: Job, began: float) -> str:
 
 class ProgressMonitor:
     """A thread that prints, every `PROGRESS_EVERY_S`, one line per running job (from their heartbeats,
-    which the worker processes write).
+    which the worker processes write). With ``workers`` (a job per process), jobs that have not begun while
+    that many others beat are waiting for a process, and share one line.
     """
 
-    def __init__(self, jobs: Sequence[Job], write, every: float = PROGRESS_EVERY_S) -> None:
+    def __init__(self, jobs: Sequence[Job], write, every: float = PROGRESS_EVERY_S,
+                 workers: int | None = None) -> None:
         import threading
 
-        self.jobs, self.write, self.every = list(jobs), write, every
+        self.jobs, self.write, self.every, self.workers = list(jobs), write, every, workers
         self.finished: set[str] = set()
         self.began, self.wall = time.monotonic(), time.time()
         self.stop = threading.Event()
@@ -179,10 +187,24 @@ class ProgressMonitor:
 
     def _loop(self) -> None:
         while not self.stop.wait(self.every):
-            running = [j for j in self.jobs if j.name not in self.finished]
-            if running:
-                self.write(f"[{_duration(time.monotonic() - self.began)}] {len(running)} run(s) in progress:\n"
-                           + "\n".join(progress_line(j, self.wall) for j in running))
+            report = self.report()
+            if report:
+                self.write(report)
+
+    def report(self) -> str:
+        """The lines on the unfinished jobs ('' when none is left)."""
+        left = [j for j in self.jobs if j.name not in self.finished]
+        beating = [j for j in left if heartbeat(j, self.wall) is not None]
+        waiting = [j for j in left if j not in beating] if self.workers and len(beating) >= self.workers else []
+        running = [j for j in left if j not in waiting]
+        if not left:
+            return ""
+        lines = [progress_line(j, self.wall) for j in running]
+        if waiting:
+            lines.append(f"  {len(waiting)} waiting for a free process: "
+                         + ", ".join(f"{j.task}/{j.condition}" for j in waiting))
+        return (f"[{_duration(time.monotonic() - self.began)}] {len(running)} run(s) in progress"
+                + (f", {len(waiting)} waiting" if waiting else "") + ":\n" + "\n".join(lines))
 
     def __enter__(self) -> ProgressMonitor:
         self.thread.start()
@@ -209,7 +231,9 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
                dynamic_ncols=True)
     results = [JobResult(j.name, "skipped") for j in done_before]
 
-    monitor = ProgressMonitor(monitored, lambda text: bar.write(text, file=sys.stderr))
+    workers = workers or usable_cpus()
+    monitor = ProgressMonitor(monitored, lambda text: bar.write(text, file=sys.stderr),
+                              workers=workers if executor == "local" and not pack else None)
 
     def on_result(result: JobResult) -> None:
         monitor.finished.add(result.job)
@@ -229,7 +253,7 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
             pass
         elif executor == "local":
             with monitor if progress else _nothing():
-                results += run_local(todo, workers or usable_cpus(), on_result)
+                results += run_local(todo, workers, on_result)
         else:
             with monitor if progress else _nothing():
                 results += run_ray(todo, address, on_result)

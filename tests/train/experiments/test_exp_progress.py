@@ -10,7 +10,7 @@ from train.cli import main
 from train.config import TrainConfig
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import Job
-from train.experiments.sweep import plan, progress_line
+from train.experiments.sweep import ProgressMonitor, plan, progress_line
 from train.experiments.timebox import Speed, fit_steps, resize_jobs
 from train.runlog import PROGRESS_FILE, heartbeat_to, read_heartbeat
 
@@ -50,6 +50,26 @@ def test_progress_line_shows_steps_rate_eta_and_the_last_evaluation(tmp_path):
     assert "25,000/100,200 steps (25%)" in line and "212 steps/s" in line and "ETA 5 min 54 s" in line
     assert "last success 0.03" in line
     assert "starting" in progress_line(job, began=100.0)  # a heartbeat older than this sweep is not shown
+
+
+def test_jobs_queued_behind_busy_processes_are_waiting_not_starting(tmp_path):
+    """Every job not yet beating read 'starting (imports, environment, first epoch)', and '4 run(s) in progress'
+    where two processes trained and two conditions waited for them.
+    """
+    jobs = [Job("headline", "salad", name, str(tmp_path / name), {}, 1.0) for name in ("a", "b", "c", "d")]
+    monitor = ProgressMonitor(jobs, print, workers=2)
+    beat = {"step": 100, "total": 1000, "steps_per_s": 50.0, "eta_s": 18, "latest": {}, "time": monitor.wall + 1}
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / PROGRESS_FILE).write_text(json.dumps(beat))
+    report = monitor.report()
+    assert "] 4 run(s) in progress:" in report and report.count("starting") == 3  # one process still starting
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / PROGRESS_FILE).write_text(json.dumps(beat))
+    report = monitor.report()
+    assert "] 2 run(s) in progress, 2 waiting:" in report and "starting" not in report
+    assert report.endswith("  2 waiting for a free process: salad/c, salad/d")
+    monitor.finished.update(job.name for job in jobs)
+    assert monitor.report() == ""
 
 
 def test_fit_steps_sizes_runs_to_the_time_budget():
