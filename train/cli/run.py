@@ -62,6 +62,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                         help="train these conditions again from scratch, deleting their results and checkpoint "
                              "(e.g. one that finished but lost its checkpoint)")
     parser.add_argument("--dry-run", action="store_true", help="print the runs (and their state), run nothing")
+    parser.add_argument("--estimate", action="store_true",
+                        help="as --dry-run, then measure this machine on each kind of run not yet done (a few "
+                             "seconds each) and print how long they take, --jobs at a time, one per process")
     parser.add_argument("--report", action="store_true", help="write the report of OUT/EXPERIMENT afterwards")
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     parser.set_defaults(handler=handle)
@@ -117,7 +120,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         jobs = timebox(jobs, args.minutes * 60 - (time.monotonic() - began), args.jobs or usable_cpus(),
                        lambda line: print(line, file=sys.stderr), asked_seconds=args.minutes * 60)
     train, copies = _twins(exp, jobs, args)
-    if args.dry_run:
+    if args.dry_run or args.estimate:
         _print_dry_run(train, args)
         for copy, original in copies:
             print(_copy_line(copy, original))
@@ -168,12 +171,19 @@ def _packing(args: argparse.Namespace) -> int:
 
 
 def _print_dry_run(jobs: list, args: argparse.Namespace) -> None:
-    """The plan, and the packs it would train."""
+    """The plan, the packs it would train and, with --estimate, how long the runs not yet done take here."""
     from train.experiments.sweep import print_packs, print_plan
 
     print_plan(jobs)
     if pack := _packing(args):
         print_packs(jobs, pack)
+    if args.estimate:
+        from train.experiments.jobs import job_is_done
+        from train.experiments.timebox import estimate
+
+        with user_errors(ValueError, OSError):
+            todo = [j for j in jobs if not job_is_done(j)]
+            estimate(todo, args.jobs or usable_cpus(), print)
 
 
 def _execute(jobs: list, args: argparse.Namespace, where: Path) -> list | None:
@@ -204,7 +214,7 @@ def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, name
         parser.error(str(err))
     _check_out_and_device(args)
     train, copies = split_copies(jobs)
-    if args.dry_run:
+    if args.dry_run or args.estimate:
         _print_dry_run(train, args)
         for copy, original in copies:
             print(_copy_line(copy, original))

@@ -163,3 +163,64 @@ def timebox(jobs: list, seconds_left: float, workers: int, say, asked_seconds: f
             f"measuring and the report's {REPORT_RESERVE_S:.0f} s: this will end late (give --minutes "
             f"{math.ceil((asked + predicted - left) / 60) + 1} or more, or fewer --condition/--seeds)")
     return resize_jobs(jobs, steps)
+
+
+def _duration(seconds: float) -> str:
+    """'3 h 05 min', '12 min', or '40 s'."""
+    if seconds < 60:
+        return f"{seconds:.0f} s"
+    hours, minutes = divmod(round(seconds / 60), 60)
+    return f"{hours} h {minutes:02d} min" if hours else f"{minutes} min"
+
+
+def makespan(seconds: list[float], workers: int) -> float:
+    """Wall time of runs of ``seconds`` each, ``workers`` at a time, longest first (as `run_jobs` starts them)."""
+    lanes = [0.0] * max(1, workers)
+    for s in sorted(seconds, reverse=True):
+        lanes[lanes.index(min(lanes))] += s
+    return max(lanes)
+
+
+def _kind(job) -> tuple:
+    """What sets a run's speed: its task, seeds per process and evaluation (one measurement per kind)."""
+    cfg = TrainConfig.from_dict(job.config)
+    return cfg.env.task, cfg.run.seeds, cfg.dqn.batch_size, cfg.dqn.updates_per_epoch, repr(cfg.eval)
+
+
+def _left(job) -> float:
+    """The share of a job's steps still to train (its heartbeat's step, where it ran before)."""
+    from pathlib import Path
+
+    from train.runlog import PROGRESS_FILE, read_heartbeat
+
+    beat = read_heartbeat(Path(job.run_dir) / PROGRESS_FILE)
+    total = TrainConfig.from_dict(job.config).total_steps
+    return 1.0 if beat is None else max(0.0, 1.0 - int(beat["step"]) / total)
+
+
+def estimate(jobs: list, workers: int, say, measure=measure_speed_together) -> float:
+    """Measure this machine on one run of each kind among the training ``jobs`` (`_kind`) and predict the wall
+    time of them all, ``workers`` at a time (resumed ones for their steps left); ``say`` prints a line per kind
+    and the total. Returns the predicted seconds.
+    """
+    kinds: dict[tuple, list] = {}
+    for job in jobs:
+        if not job.is_measurement:
+            kinds.setdefault(_kind(job), []).append(job)
+    if not kinds:
+        say("estimate: nothing to train")
+        return 0.0
+    say(f"measuring this machine's speed on each kind of run ({len(kinds)}; a few seconds each) ...")
+    seconds = []
+    for group in kinds.values():
+        cfg = TrainConfig.from_dict(group[0].config)
+        speed = measure(group[0].config, min(workers, len(group)))
+        each = [speed.run_seconds(TrainConfig.from_dict(j.config), margin=1.0) * _left(j) for j in group]
+        seconds += each
+        say(f"  {cfg.env.task}, {cfg.run.seeds} seeds: {speed.describe(cfg)}; {len(group)} run(s), "
+            f"{_duration(sum(each))} in all")
+    total = makespan(seconds, workers)
+    say(f"estimate: {len(seconds)} run(s), {min(workers, len(seconds))} at a time: about {_duration(total)} on this "
+        f"machine, more rather than less (checkpoints, late greedy epochs and other work add to it; --jobs N sets "
+        f"how many run at a time)")
+    return total

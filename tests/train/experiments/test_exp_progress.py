@@ -5,13 +5,16 @@ sized to a time budget from this machine's measured speed.
 from __future__ import annotations
 
 import json
+from pathlib import Path
+
+import pytest
 
 from train.cli import main
 from train.config import TrainConfig
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import Job
 from train.experiments.sweep import ProgressMonitor, plan, progress_line
-from train.experiments.timebox import Speed, fit_steps, resize_jobs
+from train.experiments.timebox import Speed, estimate, fit_steps, makespan, resize_jobs
 from train.runlog import PROGRESS_FILE, heartbeat_to, read_heartbeat
 
 TINY = TrainConfig().replace(task="salad", steps=1200, updates_per_epoch=5, eval_every=500, eval_rollouts=2,
@@ -134,3 +137,32 @@ def test_a_stopped_run_leaves_its_heartbeat_at_the_step_it_stopped(tmp_path):
     beat.update(5_000)  # the next one is not due yet
     beat.close()  # the run stopped here
     assert read_heartbeat(path)["step"] == 5_700
+
+
+def test_makespan_starts_the_longest_runs_first_on_the_free_process():
+    assert makespan([3.0, 3.0, 2.0, 2.0, 2.0], 2) == 7.0  # 3+2+2 and 3+2
+    assert makespan([5.0], 4) == 5.0 and makespan([1.0, 1.0], 1) == 2.0
+
+
+def test_estimate_measures_each_kind_of_run_once_and_counts_only_the_steps_left(tmp_path):
+    jobs = plan(get_experiment("dynamism-sweep"), "smoke", str(tmp_path))  # salad and hunting, five runs each
+    speed = Speed(startup_s=2.0, random_epoch_s=1.0, greedy_epoch_s=1.0, evaluation_s=0.5)
+    measured, lines = [], []
+    seconds = estimate(jobs, 2, lines.append, measure=lambda config, copies: measured.append(copies) or speed)
+    assert measured == [2, 2]  # one measurement per task, as many copies as will run at once
+    each = speed.run_seconds(TrainConfig.from_dict(jobs[0].config), margin=1.0)
+    assert seconds == pytest.approx(makespan([each] * 10, 2))
+    assert lines[-1].startswith("estimate: 10 run(s), 2 at a time: about ")
+    half = TrainConfig.from_dict(jobs[0].config).total_steps // 2  # a run stopped halfway costs half
+    Path(jobs[0].run_dir).mkdir(parents=True)
+    (Path(jobs[0].run_dir) / PROGRESS_FILE).write_text(json.dumps({"step": half, "time": 0.0}))
+    assert estimate(jobs[:1], 1, lines.append, measure=lambda *_: speed) == pytest.approx(each / 2)
+
+
+def test_run_estimate_prints_the_plan_and_the_measured_time(tmp_path, capsys):
+    assert main(["run", "headline", "--budget", "smoke", "--condition", "static-reset-free", "--jobs", "1",
+                 "--estimate", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "[   new] headline/salad/static-reset-free" in out and "salad, 2 seeds: " in out
+    assert "estimate: 1 run(s), 1 at a time: about " in out
+    assert not (tmp_path / "headline" / "salad" / "static-reset-free" / "metrics.csv").exists()  # nothing trained
