@@ -181,10 +181,26 @@ def makespan(seconds: list[float], workers: int) -> float:
     return max(lanes)
 
 
-def _kind(job) -> tuple:
-    """What sets a run's speed: its task, seeds per process and evaluation (one measurement per kind)."""
-    cfg = TrainConfig.from_dict(job.config)
-    return cfg.env.task, cfg.run.seeds, cfg.dqn.batch_size, cfg.dqn.updates_per_epoch, repr(cfg.eval)
+def run_kind(job) -> tuple[tuple[str, str], ...]:
+    """What sets a run's speed, as (name, value) pairs: its task, seeds per process, minibatch, updates and the
+    evaluation's settings where they differ from the defaults (one measurement per kind).
+    """
+    cfg, default = TrainConfig.from_dict(job.config), TrainConfig().eval
+    evaluation = [f"{f.name}={getattr(cfg.eval, f.name)}" for f in fields(cfg.eval)
+                  if getattr(cfg.eval, f.name) != getattr(default, f.name)]
+    return (("task", cfg.env.task), ("seeds", f"{cfg.run.seeds} seeds"), ("batch", f"batch {cfg.dqn.batch_size}"),
+            ("updates", f"{cfg.dqn.updates_per_epoch} updates per epoch"), ("eval", " ".join(evaluation)))
+
+
+def kind_labels(kinds: list[tuple[tuple[str, str], ...]]) -> list[str]:
+    """A name per kind: its task and seeds, and what else tells it from the other kinds of that task."""
+    labels = []
+    for kind in kinds:
+        same_task = [k for k in kinds if k[0] == kind[0]]
+        parts = [value for i, (name, value) in enumerate(kind)
+                 if name in ("task", "seeds") or (value and len({k[i][1] for k in same_task}) > 1)]
+        labels.append(", ".join(parts))
+    return labels
 
 
 def _left(job) -> float:
@@ -199,26 +215,25 @@ def _left(job) -> float:
 
 
 def estimate(jobs: list, workers: int, say, measure=measure_speed_together) -> float:
-    """Measure this machine on one run of each kind among the training ``jobs`` (`_kind`) and predict the wall
+    """Measure this machine on one run of each kind among the training ``jobs`` (`run_kind`) and predict the wall
     time of them all, ``workers`` at a time (resumed ones for their steps left); ``say`` prints a line per kind
     and the total. Returns the predicted seconds.
     """
-    kinds: dict[tuple, list] = {}
+    kinds: dict[tuple[tuple[str, str], ...], list] = {}
     for job in jobs:
         if not job.is_measurement:
-            kinds.setdefault(_kind(job), []).append(job)
+            kinds.setdefault(run_kind(job), []).append(job)
     if not kinds:
         say("estimate: nothing to train")
         return 0.0
     say(f"measuring this machine's speed on each kind of run ({len(kinds)}; a few seconds each) ...")
     seconds = []
-    for group in kinds.values():
+    for label, group in zip(kind_labels(list(kinds)), kinds.values()):
         cfg = TrainConfig.from_dict(group[0].config)
         speed = measure(group[0].config, min(workers, len(group)))
         each = [speed.run_seconds(TrainConfig.from_dict(j.config), margin=1.0) * _left(j) for j in group]
         seconds += each
-        say(f"  {cfg.env.task}, {cfg.run.seeds} seeds: {speed.describe(cfg)}; {len(group)} run(s), "
-            f"{_duration(sum(each))} in all")
+        say(f"  {label}: {speed.describe(cfg)}; {len(group)} run(s), {_duration(sum(each))} in all")
     total = makespan(seconds, workers)
     say(f"estimate: {len(seconds)} run(s), {min(workers, len(seconds))} at a time: about {_duration(total)} on this "
         f"machine, more rather than less (checkpoints, late greedy epochs and other work add to it; --jobs N sets "

@@ -14,7 +14,7 @@ from train.config import TrainConfig
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import Job
 from train.experiments.sweep import ProgressMonitor, plan, progress_line
-from train.experiments.timebox import Speed, estimate, fit_steps, makespan, resize_jobs
+from train.experiments.timebox import Speed, estimate, fit_steps, kind_labels, makespan, resize_jobs, run_kind
 from train.runlog import PROGRESS_FILE, heartbeat_to, read_heartbeat
 
 TINY = TrainConfig().replace(task="salad", steps=1200, updates_per_epoch=5, eval_every=500, eval_rollouts=2,
@@ -166,3 +166,10 @@ def test_run_estimate_prints_the_plan_and_the_measured_time(tmp_path, capsys):
     assert "[   new] headline/salad/static-reset-free" in out and "salad, 2 seeds: " in out
     assert "estimate: 1 run(s), 1 at a time: about " in out
     assert not (tmp_path / "headline" / "salad" / "static-reset-free" / "metrics.csv").exists()  # nothing trained
+
+
+def test_kinds_of_one_task_are_named_by_what_tells_them_apart(tmp_path):
+    """Two kinds of salad runs both read 'salad, 10 seeds' (one with minibatches of 256)."""
+    jobs = [j for j in plan(get_experiment("settings"), "paper", str(tmp_path)) if not j.is_measurement]
+    labels = set(kind_labels(list(dict.fromkeys(run_kind(j) for j in jobs))))
+    assert {"salad, 10 seeds, batch 64", "salad, 10 seeds, batch 256"} <= labels
