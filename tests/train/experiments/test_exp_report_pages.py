@@ -305,3 +305,19 @@ def test_a_long_video_is_refused_at_the_pixel_budget_not_re_encoded_for_minutes(
     assert not list((tmp_path / "out").glob("*.mp4"))  # no half-written copy
     monkeypatch.setattr(webvideo, "MAX_PIXELS_READ", 30 * 40 * 40)
     assert webvideo.web_copy(long, tmp_path / "out", "l", "caption") is not None
+
+
+def test_labels_at_one_place_are_moved_apart_and_the_first_keeps_its_own():
+    """The demo's first figure drew a live run's label (ending at 400 000 of 1 M steps) over the shipped run's."""
+    from train.experiments.report.figures import pyplot
+    from train.experiments.report.lead import keep_apart
+
+    fig, ax = pyplot().subplots(figsize=(6, 3), layout="constrained")
+    labels = [ax.annotate(text, (0.5, 0.5), xytext=(8, 0), textcoords="offset points", va="center",
+                          bbox=dict(boxstyle="round")) for text in ("shipped: 51.3%", "live: 47.3%", "other: 0.3%")]
+    keep_apart(fig, labels)
+    renderer = fig.canvas.get_renderer()
+    boxes = [label.get_tightbbox(renderer) for label in labels]
+    assert labels[0].xyann == (8, 0)
+    assert not any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+    assert labels[1].xyann[1] > 0 > labels[2].xyann[1]  # one line up, then one line down

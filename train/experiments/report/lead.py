@@ -111,6 +111,7 @@ def plot_live_contrast(shipped: ExperimentResults, live: ExperimentResults, out:
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(10, 5.2), layout="constrained")
     colors = condition_colors(CONTRAST)
+    labels = []
     for index, (run, kind) in enumerate([(r, "shipped") for r in theirs] + [(r, "live") for r in ours]):
         mean, low, high = bootstrap_ci(run.values)
         color = colors[run.condition]
@@ -122,9 +123,9 @@ def plot_live_contrast(shipped: ExperimentResults, live: ExperimentResults, out:
                  f"({run.seeds} seeds): {text}")
         box = dict(boxstyle="round,pad=0.25", fc="white", ec=color, alpha=0.9) if kind == "live" else None
         rise = (-12 if index % 2 == 0 else 14) if kind == "live" else 0  # the two live labels apart, even at 0
-        ax.annotate(label, (run.steps[-1], mean[-1]), xytext=(8, rise),
-                    textcoords="offset points", color=color, fontsize=8.5, va="center", bbox=box,
-                    fontweight="bold" if kind == "live" else "normal")
+        labels.append(ax.annotate(label, (run.steps[-1], mean[-1]), xytext=(8, rise),
+                                  textcoords="offset points", color=color, fontsize=8.5, va="center", bbox=box,
+                                  fontweight="bold" if kind == "live" else "normal"))
     ax.set_xlim(0, max(int(r.steps[-1]) for r in theirs) * 1.6)
     ax.set_ylim(-0.03, 1.03)
     ax.set_xlabel("environment steps")
@@ -134,8 +135,28 @@ def plot_live_contrast(shipped: ExperimentResults, live: ExperimentResults, out:
     steps = max(int(r.steps[-1]) for r in ours)
     ax.set_title(textwrap.fill(f"{shipped.info.get('title', shipped.name)}: your live runs (solid, to {steps:,} "
                                f"steps) on the shipped 10-seed runs (dashed); mean and 95% CI", 110), fontsize=10)
+    keep_apart(fig, labels)
     save_figure(fig, out, dpi=110)
     return out
+
+
+def keep_apart(fig, labels: list) -> None:
+    """Move each label (an annotation placed in offset points) up or down, a line at a time, to the nearest place
+    where its box overlaps none of the labels before it: those keep theirs. A live run that ends halfway had its
+    label drawn over the shipped run's at the end of the axis.
+    """
+    fig.canvas.draw()  # the layout settles first, so that the boxes are where they will be saved
+    renderer = fig.canvas.get_renderer()
+    placed = []
+    for text in labels:
+        x, y = text.xyann
+        line = text.get_tightbbox(renderer).height * 72 / fig.dpi + 1  # points
+        for shift in (0, 1, -1, 2, -2, 3, -3, 4, -4):
+            text.xyann = (x, y + shift * line)
+            box = text.get_tightbbox(renderer)
+            if not any(box.overlaps(other) for other in placed):
+                break
+        placed.append(text.get_tightbbox(renderer))
 
 
 def separation_sentence(exp: ExperimentResults) -> str:
