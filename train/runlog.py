@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import signal
+import sys
 import threading
 import time
 from contextlib import contextmanager
@@ -147,12 +149,18 @@ def request_stop() -> None:
         stop.set()
 
 
+FIRST_SIGNAL_NOTE = ("\nstopping at the end of this epoch, with a checkpoint; a second Ctrl-C stops at once, without "
+                     "saving this epoch (the last checkpoint stands)\n")
+"""What an interactive run says when the first signal arrives (an epoch of many seeds can take minutes)."""
+
+
 @contextmanager
-def stop_on_signal():
+def stop_on_signal(announce: bool = False):
     """An event set by SIGINT/SIGTERM while inside the block (main thread only; elsewhere never set).
 
     The first signal sets it (the run stops at the end of its epoch, with a checkpoint; an evaluation polls
-    `stop_requested` and stops at once, raising `Interrupted`); a second signal raises `Interrupted`.
+    `stop_requested` and stops at once, raising `Interrupted`) and, with ``announce``, says so on stderr; a second
+    signal raises `Interrupted`.
     """
     stop = threading.Event()
     if threading.current_thread() is not threading.main_thread():
@@ -163,6 +171,8 @@ def stop_on_signal():
         if stop.is_set():
             raise Interrupted(f"a second {signal.Signals(signum).name}")
         stop.set()
+        if announce:
+            _write_stderr(FIRST_SIGNAL_NOTE)
 
     previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
     _STOPS.append(stop)
@@ -172,6 +182,16 @@ def stop_on_signal():
         _STOPS.remove(stop)
         for sig, old in previous.items():
             signal.signal(sig, old)
+
+
+def _write_stderr(text: str) -> None:
+    """``text`` on stderr straight through its file descriptor: a signal handler may run while the progress bar is
+    inside a write to ``sys.stderr``, and a second buffered write there would raise a reentrant-call error.
+    """
+    try:
+        os.write(sys.stderr.fileno(), text.encode())
+    except (AttributeError, OSError, ValueError):  # no file descriptor (captured), or a closed one
+        pass
 
 
 class RunLogger:

@@ -295,7 +295,7 @@ class Trainer:
             self.save()
         loggers = [RunLogger(p.run_dir, p.cfg, p.resumed_from if p.resumed_from >= 0 else None)
                    if p.run_dir is not None else None for p in self.parts]
-        with stop_on_signal() as stop, progress_bar(cfg, self.step, len(self.parts)) as bar:
+        with stop_on_signal(announce=cfg.run.progress) as stop, progress_bar(cfg, self.step, len(self.parts)) as bar:
             stopping = False
             while self.epoch < cfg.num_epochs and not stopping:
                 before = self.step

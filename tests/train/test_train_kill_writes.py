@@ -109,3 +109,18 @@ def test_kill_during_a_report_keeps_the_previous_report(tmp_path):
                    f"str(args[1]).endswith('{name}')")
         assert (root / name).read_bytes() == before[name]
     assert (root / "figures" / "rnd_curves.png").stat().st_size > 0  # written (atomically) before the kill
+
+
+def test_a_first_signal_says_the_run_stops_at_its_epoch_end(capfd):
+    """A run of many seeds went silent for minutes after Ctrl-C while it finished its epoch."""
+    import os
+    import time
+
+    from train.runlog import FIRST_SIGNAL_NOTE, stop_on_signal
+
+    for announce in (True, False):
+        with stop_on_signal(announce=announce) as stop:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(0.05)  # the handler runs between two bytecodes of the main thread
+            assert stop.is_set()
+        assert (FIRST_SIGNAL_NOTE.strip() in capfd.readouterr().err) == announce
