@@ -21,9 +21,12 @@ README = REPO / "README.md"
 SHORT_TRAINING = ["--eval-every", "500", "--eval-rollouts", "4", "--updates-per-epoch", "20"]
 
 
-def blocks(language: str) -> list[str]:
-    """The README's fenced code blocks in ``language``, in order."""
-    return re.findall(rf"```{language}\n(.*?)```", README.read_text(), re.S)
+CLI_DOC = REPO / "docs" / "cli.md"
+
+
+def blocks(language: str, page: Path = README) -> list[str]:
+    """The fenced code blocks in ``language`` of ``page`` (the README), in order."""
+    return re.findall(rf"```{language}\n(.*?)```", page.read_text(), re.S)
 
 
 def commands() -> list[str]:
@@ -67,10 +70,13 @@ def test_every_readme_command_runs_as_printed(tmp_path):
     assert untracked <= {"runs", "results"}, untracked  # everything a command writes goes under runs/ or results/
 
 
-@pytest.mark.parametrize("index", range(len(blocks("python"))))
-def test_every_readme_python_block_runs(index, tmp_path):
-    proc = subprocess.run([sys.executable, "-c", blocks("python")[index]], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(REPO)})
+PYTHON_BLOCKS = [(page, i) for page in (README, CLI_DOC) for i in range(len(blocks("python", page)))]
+
+
+@pytest.mark.parametrize("page, index", PYTHON_BLOCKS, ids=[f"{p.name}-{i}" for p, i in PYTHON_BLOCKS])
+def test_every_python_block_of_the_readme_and_the_cli_page_runs(page, index, tmp_path):
+    proc = subprocess.run([sys.executable, "-c", blocks("python", page)[index]], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=300, env={**os.environ, "PYTHONPATH": str(REPO), "MPLBACKEND": "Agg"})
     assert proc.returncode == 0, proc.stderr[-2000:]
 
 
