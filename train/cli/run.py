@@ -184,6 +184,9 @@ def _print_dry_run(jobs: list, args: argparse.Namespace) -> None:
         with user_errors(ValueError, OSError):
             todo = [j for j in jobs if not job_is_done(j)]
             estimate(todo, args.jobs or usable_cpus(), print)
+        if pack:
+            print("(estimated for one run per process: packed, as this command would train them, they take less; "
+                  "benchmarks/bench_paper.py times packs)")
 
 
 def _execute(jobs: list, args: argparse.Namespace, where: Path) -> list | None:
