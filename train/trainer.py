@@ -86,7 +86,10 @@ class Trainer:
             torch.backends.cudnn.allow_tf32 = False
         torch.set_num_threads(run.threads)
         # Adam's second moments of inputs that are never active decay through the denormal range, where
-        # CPU arithmetic is ~100x slower; flushing only changes values below ~1e-38 (to zero).
+        # CPU arithmetic is ~100x slower; flushing only changes values below ~1e-38 (to zero). numpy < 2.3 works out
+        # a float type's limits on first use and warns when denormals are flushed by then: work them out first.
+        for dtype in (np.float16, np.float32, np.float64):
+            np.finfo(dtype)
         torch.set_flush_denormal(True)
         settings = [RowSettings(s, c.dqn, c.rnd) for c in cfgs for s in c.run.seed_list]
         net = QNetwork.from_config(self.info.view_dim, self.info.obs_dim, self.info.num_actions, cfgs[0].dqn)
