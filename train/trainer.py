@@ -85,9 +85,8 @@ class Trainer:
             torch.backends.cuda.matmul.allow_tf32 = False
             torch.backends.cudnn.allow_tf32 = False
         torch.set_num_threads(run.threads)
-        # Adam's second moments of inputs that are never active decay through the denormal range, where
-        # CPU arithmetic is ~100x slower; flushing only changes values below ~1e-38 (to zero). numpy < 2.3 works out
-        # a float type's limits on first use and warns when denormals are flushed by then: work them out first.
+        # Adam's second moments of inputs never active decay through the denormal range (CPU arithmetic ~100x slower
+        # there); flushing changes only values below ~1e-38. numpy < 2.3 warns if it first reads limits after it.
         for dtype in (np.float16, np.float32, np.float64):
             np.finfo(dtype)
         torch.set_flush_denormal(True)
