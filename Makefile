@@ -2,9 +2,13 @@
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
-# A CPU build of torch: pinned, and taken from a local wheel folder when the machine has one.
+# A CPU build of torch, pinned: from a local wheel folder when the machine has one, else from PyTorch's CPU index
+# (PyPI's Linux wheels of torch are CUDA builds that pull GBs of NVIDIA packages; TORCH_INDEX= takes PyPI's).
 TORCH ?= torch==2.13.0
-WHEELS := $(if $(wildcard /opt/wheels),--find-links /opt/wheels,)
+LOCAL_WHEELS ?= /opt/wheels
+TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
+WHEELS := $(if $(wildcard $(LOCAL_WHEELS)),--find-links $(LOCAL_WHEELS),)
+TORCH_SOURCE := $(if $(WHEELS),$(WHEELS),$(if $(TORCH_INDEX),--index-url $(TORCH_INDEX),))
 # The main job's clock starts when make does, so that set-up counts against its time budget.
 DEMO_START := $(shell date +%s)
 DEMO_SECONDS ?= 690
@@ -18,7 +22,7 @@ $(VENV)/.installed: pyproject.toml
 	@echo "setting up $(VENV) (first time only): torch (CPU build), then ecorl and its dependencies"
 	$(PYTHON) -m venv $(VENV)
 	@(while sleep 20; do echo "  ... still setting up $(VENV) ($$(date +%T))"; done) & ticker=$$!; \
-	  ( $(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install --progress-bar off $(WHEELS) "$(TORCH)" ) \
+	  ( $(BIN)/python -c "import torch" 2>/dev/null || $(BIN)/pip install --progress-bar off $(TORCH_SOURCE) "$(TORCH)" ) \
 	  && $(BIN)/pip install --progress-bar off $(WHEELS) -e ".[dev]" | grep -E "^(Collecting|Successfully)"; \
 	  kill $$ticker
 	$(BIN)/python -c "import ecology, train" && $(BIN)/python -m train.warmup && touch $@
