@@ -194,11 +194,11 @@ class ProgressMonitor:
     def report(self) -> str:
         """The lines on the unfinished jobs ('' when none is left)."""
         left = [j for j in self.jobs if j.name not in self.finished]
+        if not left:
+            return ""
         beating = [j for j in left if heartbeat(j, self.wall) is not None]
         waiting = [j for j in left if j not in beating] if self.workers and len(beating) >= self.workers else []
         running = [j for j in left if j not in waiting]
-        if not left:
-            return ""
         lines = [progress_line(j, self.wall) for j in running]
         if waiting:
             lines.append(f"  {len(waiting)} waiting for a free process: "
