@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, fields, replace
+from pathlib import Path
 from typing import Any
 
 from train.config import TrainConfig
@@ -204,9 +205,7 @@ def kind_labels(kinds: list[tuple[tuple[str, str], ...]]) -> list[str]:
 
 
 def _left(job) -> float:
-    """The share of a job's steps still to train (its heartbeat's step, where it ran before)."""
-    from pathlib import Path
-
+    """The share of a job's steps still to train (its heartbeat's step, where it ran under a sweep before)."""
     from train.runlog import PROGRESS_FILE, read_heartbeat
 
     beat = read_heartbeat(Path(job.run_dir) / PROGRESS_FILE)
