@@ -17,7 +17,7 @@ from collections.abc import Sequence
 
 from train.cli import demo, evaluate, export, measure, merge, report, run, video
 from train.cli import train as train_command
-from train.cli.common import OneLineParser, UserError
+from train.cli.common import OneLineParser, UserError, describe_os_error
 
 COMMANDS = (train_command, run, report, measure, video, export, evaluate, merge, demo)
 """The subcommand modules, in the order ``ecorl --help`` lists them."""
@@ -70,7 +70,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if isinstance(err, MemoryError):
             why = f"out of memory ({why}); ask for less (fewer seeds, a smaller buffer or horizon)"
         elif isinstance(err, OSError) and err.errno is not None:
-            why = f"{why}; check the path, its permissions and the free disk space, or choose another --out"
+            why = describe_os_error(err)
         print(f"ecorl {args.command}: error: {why}", file=sys.stderr)
         return 2
 

@@ -57,11 +57,16 @@ def user_errors(*kinds: type[BaseException]) -> Iterator[None]:
 
 
 def _one_line(err: BaseException) -> str:
-    """``err``'s message on one line; an operating-system error names its path, its cause and what to check."""
-    if isinstance(err, OSError) and err.errno is not None and err.filename is not None:
-        return (f"cannot use {err.filename}: {err.strerror}; check the path, its permissions and the free disk "
-                f"space, or choose another path")
+    """``err``'s message on one line (an operating-system error as `describe_os_error` puts it)."""
+    if isinstance(err, OSError) and err.errno is not None:
+        return describe_os_error(err)
     return " ".join(str(err).split())
+
+
+def describe_os_error(err: OSError) -> str:
+    """An operating-system error in one line: its path where it names one, its cause, and what to check."""
+    what = f"cannot use {err.filename}: {err.strerror}" if err.filename is not None else " ".join(str(err).split())
+    return f"{what}; check the path, its permissions and the free disk space, or choose another path"
 
 
 def relative(path: Path) -> Path:
