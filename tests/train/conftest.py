@@ -49,6 +49,7 @@ SMOKE_TASKS = {
     "hunting-behaviour": None,
     "hunting-inventory": None,
     "factory-behaviour": None,
+    "salad-shaping-released": None,
 }
 """Which tasks of each experiment the smoke fixture runs (None: all of them)."""
 SMOKE_CONDITIONS = {
@@ -61,6 +62,7 @@ SMOKE_CONDITIONS = {
     "hunting-behaviour": ["eps-1"],
     "hunting-inventory": ["rf-waypoint-inv8"],
     "factory-behaviour": ["released-eps-floor-0.3"],
+    "salad-shaping-released": ["env-shaping-sparse"],
 }
 """Which conditions of an experiment the smoke fixture runs where not all (each new kind of setting once)."""
 

@@ -410,3 +410,13 @@ def test_a_shipped_copy_is_its_source_file_for_file(copy, source):
     copied = {p.relative_to(copy_dir) for p in copy_dir.rglob("*") if p.is_file()} - film
     assert copied == files
     assert all((copy_dir / f).read_bytes() == (source_dir / f).read_bytes() for f in files)
+
+
+def test_salad_shaping_released_arms_are_fig_5s_with_only_the_rate_and_the_inventory_changed():
+    released, paper = get_experiment("salad-shaping-released"), get_experiment("shaping")
+    shipped = {c.name: job_config(paper, "salad", c, paper.budget("paper")) for c in paper.conditions["salad"]}
+    arms = {c.name: job_config(released, "salad", c, released.budget("paper")) for c in released.conditions["salad"]}
+    assert list(arms) == ["env-shaping-sparse", "no-shaping", "distance-reward", "one-time-reward"]
+    for name, cfg in arms.items():
+        assert (shipped[name].dqn.lr, shipped[name].dqn.inventory_repeat) == (3e-4, 1)
+        assert cfg == shipped[name].replace(lr=1e-4, inventory_repeat=8)
