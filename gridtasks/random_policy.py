@@ -31,6 +31,7 @@ SETTINGS: dict[str, tuple[str, dict]] = {
     "hunting move=0": ("hunting", {"dynamism": 0.0}),
     "hunting move=0.2": ("hunting", {"dynamism": 0.2}),
     "factory move=0.2": ("factory", {"dynamism": 0.2}),
+    "scavenging p=0.25": ("scavenging", {"dynamism": 0.25}),
 }
 """The settings the fidelity table reports: name -> (task, knobs)."""
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from gridtasks.codes import Code
 from gridtasks.engine import MAX_PREDATORS, code_mask
-from gridtasks.env import GridTaskEnv, SpawnRules, check_positive_int
+from gridtasks.env import GridTaskEnv, SpawnRules, check_positive_int, check_probability
 
 
 @dataclass(frozen=True)
@@ -28,6 +28,10 @@ class ScavengingConfig(SpawnRules):
     """Cost of each step the agent shares a cell with a predator (part of the task in every mode)."""
     horizon: int = 200
     """Episode length of the episodic env (the test horizon)."""
+    food_growth: float = 0.0
+    """Per-step probability that one more food grows (while at most (n-2)²//8 lie on the grid), every food then
+    withering after int(food_count / p) steps: the released Fig. 5 script's food p 0.2. 0 (default, the paper
+    text's task): food is only replenished. The test MDP grows none."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -36,6 +40,7 @@ class ScavengingConfig(SpawnRules):
         check_positive_int("predator_lifespan", self.predator_lifespan)
         check_positive_int("horizon", self.horizon)
         check_positive_int("predator_count", self.predator_count, 0)
+        check_probability("food_growth", self.food_growth)
         if self.predator_count > MAX_PREDATORS:
             raise ValueError(f"predator_count must be an integer in [0, {MAX_PREDATORS}], "
                              f"got {self.predator_count!r}")
@@ -68,9 +73,11 @@ class ScavengingEnv(GridTaskEnv):
     the greedy L1 step toward the agent (ties: N, W, S, E, stay); with probability p (dynamism) it moves
     to a uniformly random one of N, W, S, E, stay instead (the original's rule). After
     ``predator_lifespan`` steps it reappears at a random cell other than the agent's. Food is replenished
-    to ``food_count`` on the grid, one per step (it may appear under the agent, as in the original).
+    to ``food_count`` on the grid, one per step (it may appear under the agent, as in the original);
+    ``food_growth`` p > 0 also grows one more with probability p per step and makes food wither, as salad's
+    ingredients do (the released Fig. 5 script's world).
     shaping s(t): new food appears inside the salad-style window around the agent.
-    Test MDP: p = 0 (chasing predators), horizon 200.
+    Test MDP: p = 0 (chasing predators), no food growth, horizon 200.
     """
 
     Config = ScavengingConfig
@@ -82,9 +89,15 @@ class ScavengingEnv(GridTaskEnv):
         cfg = self.config
         r["goal_pickup"] = Code.FOOD
         r["initial"][Code.FOOD] = r["replenish"][Code.FOOD] = cfg.food_count
+        r["grow_prob"][Code.FOOD] = cfg.food_growth
+        r["lifespan"][Code.FOOD] = int(cfg.food_count / cfg.food_growth) if cfg.food_growth > 0 else 0
         r["near_spawn"][Code.FOOD] = not self.ecology.shaping.is_zero
         r["num_predators"] = cfg.predator_count
         r["predator_lifespan"] = cfg.predator_lifespan
         r["predator_penalty"] = cfg.predator_penalty
         r["predator_wander_prob"] = self.ecology.dynamism
         r["targets"][Code.EMPTY] = [code_mask(Code.FOOD), 0, 0]
+
+    def test_overrides(self) -> dict:
+        """The test MDP grows no food: it is only replenished."""
+        return {"food_growth": 0.0}

@@ -276,6 +276,57 @@ def test_scavenging_replenishes_food():
     assert count(world, Code.FOOD) == 2
 
 
+TWO_FOOD = """
+#######
+#.....#
+#.F...#
+#.....#
+#...F.#
+#....@#
+#######
+"""
+"""Two food, the agent at (5, 5): replenishment has nothing to add."""
+
+
+def test_scavenging_food_grows_with_probability_food_growth_beyond_the_replenished_two():
+    p, trials = 0.2, 2000
+    env = make(gridtasks.ScavengingEnv, 7, food_count=2, predator_count=0, food_growth=p, reset_free=True)
+    rules, grown = env.unwrapped.rules[0], 0
+    for _ in range(trials):
+        world = world_from_map(env, TWO_FOOD)
+        engine.grow_resources(world, rules, 0.0)
+        new = count(world, Code.FOOD) - 2
+        assert new in (0, 1)
+        grown += new
+    assert abs(grown - p * trials) < tolerance(trials, p)
+
+
+def test_scavenging_food_grows_only_while_replenishment_adds_none():
+    env = make(gridtasks.ScavengingEnv, 7, food_count=2, predator_count=0, food_growth=1.0, reset_free=True)
+    world = world_from_map(env, TWO_FOOD.replace("F", ".", 1))
+    engine.grow_resources(world, env.unwrapped.rules[0], 0.0)
+    assert count(world, Code.FOOD) == 2  # the replenished one, no growth in the same step
+    engine.grow_resources(world, env.unwrapped.rules[0], 0.0)
+    assert count(world, Code.FOOD) == 3
+
+
+@pytest.mark.parametrize(("food_growth", "lifespan"), [(0.0, 0), (0.2, 10), (0.3, 6)])
+def test_growing_food_withers_after_food_count_over_p(food_growth, lifespan):
+    env = make(gridtasks.ScavengingEnv, 7, food_count=2, food_growth=food_growth)
+    assert env.unwrapped.rules[0]["lifespan"][Code.FOOD] == lifespan
+
+
+def test_the_scavenging_test_mdp_grows_no_food():
+    env = make(gridtasks.ScavengingEnv, 7, food_growth=0.2)
+    assert env.unwrapped.test_mdp_kwargs()["food_growth"] == 0.0
+
+
+@pytest.mark.parametrize("bad", [-0.1, 1.5, float("nan"), True, "0.2"])
+def test_food_growth_must_be_a_probability(bad):
+    with pytest.raises(ValueError, match="food_growth must be a probability"):
+        gridtasks.ScavengingEnv(food_growth=bad)
+
+
 # ---------------------------------------------------------------------------------------------- shaping window
 
 

@@ -50,6 +50,7 @@ SMOKE_TASKS = {
     "hunting-inventory": None,
     "factory-behaviour": None,
     "salad-shaping-released": None,
+    "scavenging-released": None,
 }
 """Which tasks of each experiment the smoke fixture runs (None: all of them)."""
 SMOKE_CONDITIONS = {
@@ -63,6 +64,7 @@ SMOKE_CONDITIONS = {
     "hunting-inventory": ["rf-waypoint-inv8"],
     "factory-behaviour": ["released-eps-floor-0.3"],
     "salad-shaping-released": ["env-shaping-sparse"],
+    "scavenging-released": ["env-shaping-540k"],
 }
 """Which conditions of an experiment the smoke fixture runs where not all (each new kind of setting once)."""
 

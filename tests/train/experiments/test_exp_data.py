@@ -420,3 +420,18 @@ def test_salad_shaping_released_arms_are_fig_5s_with_only_the_rate_and_the_inven
     for name, cfg in arms.items():
         assert (shipped[name].dqn.lr, shipped[name].dqn.inventory_repeat) == (3e-4, 1)
         assert cfg == shipped[name].replace(lr=1e-4, inventory_repeat=8)
+
+
+def test_scavenging_released_arms_train_the_released_world_and_differ_in_the_spawn_window_alone():
+    exp = get_experiment("scavenging-released")
+    arms = {c.name: job_config(exp, "scavenging", c, exp.budget("paper")) for c in exp.conditions["scavenging"]}
+    plain = arms.pop("no-shaping")
+    assert (plain.env.dynamism, plain.env.env_kwargs, plain.env.reset_free, plain.env.reward) == (
+        0.25, {"food_growth": 0.2}, True, "sparse")
+    assert (plain.eval.eval_dynamism, plain.eval.eval_env_kwargs) == (0.25, {"predator_count": 1,
+                                                                           "predator_lifespan": 1})
+    assert plain.dqn.lr == 1e-4 and plain.env.shaping == "0"
+    assert {name: cfg.env.shaping for name, cfg in arms.items()} == {
+        "env-shaping-540k": "linear:1:0:540000", "env-shaping-1080k": "linear:1:0:1080000"}
+    for cfg in arms.values():
+        assert cfg == plain.replace(shaping=cfg.env.shaping)
