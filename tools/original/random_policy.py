@@ -85,11 +85,15 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit("pick a sparse-reward sweep point (--set make_rtype=sparse): solves are read off its reward")
     results = np.array([one_world(env_class, kwargs, s, args.steps) for s in range(args.seeds)], dtype=float)
     solves, first, caught = results.T
-    half = 1.96 * solves.std(ddof=1) / np.sqrt(len(solves))
     print("| script point | solves per world (± 95 % CI) | first solve, mean / median step | steps caught per world |")
     print("|---|---|---|---|")
-    print(f"| {args.script} {' '.join(args.set)} | {solves.mean():.2f} ± {half:.2f} | {first.mean():.0f} / "
-          f"{np.median(first):.0f} | {caught.mean():.0f} |")
+    print(f"| {args.script} {' '.join(args.set)} | {solves.mean():.2f} ± {half_width(solves):.2f} | "
+          f"{first.mean():.0f} / {np.median(first):.0f} | {caught.mean():.0f} ± {half_width(caught):.0f} |")
+
+
+def half_width(values: np.ndarray) -> float:
+    """Half the width of the normal 95 % interval of the mean over worlds."""
+    return float(1.96 * values.std(ddof=1) / np.sqrt(len(values)))
 
 
 if __name__ == "__main__":
