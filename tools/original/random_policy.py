@@ -23,17 +23,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import shims  # noqa: E402
-from run_released import SCRIPTS, parse_settings, pick  # noqa: E402
+from run_released import SCRIPTS, add_point_arguments, parse_settings, pick  # noqa: E402
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     """The command line."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--checkout", type=Path, required=True, help="a checkout of jcoreyes/ecologicalrl")
-    parser.add_argument("--script", required=True,
-                        help=f"a released script: one of {', '.join(SCRIPTS)}, or a path inside the checkout")
-    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
-                        help="env_kwargs values that pick one point of the script's sweep")
+    add_point_arguments(parser)
     parser.add_argument("--seeds", type=int, default=32, help="worlds (default 32, as gridtasks.random_policy)")
     parser.add_argument("--steps", type=int, default=20_000, help="steps per world (default 20 000)")
     return parser.parse_args(argv)

@@ -49,15 +49,20 @@ METRIC_FIELDS = ("epoch", "step", "success", "made", "made_axe", "max_q", "top_a
                  "train_reward", "train_solves", "seconds")
 
 
-def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    """The command line."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def add_point_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--checkout``, ``--script`` and ``--set``: one sweep point of a released script."""
     parser.add_argument("--checkout", type=Path, required=True, help="a checkout of jcoreyes/ecologicalrl")
     parser.add_argument("--script", required=True,
                         help=f"a released script: one of {', '.join(SCRIPTS)}, or a path inside the checkout")
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                         help="env_kwargs values that pick one point of the script's sweep (Python literals; "
                              "a bare word is a string)")
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The command line."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    add_point_arguments(parser)
     parser.add_argument("--seed", type=int, required=True, help="seeds random, numpy and torch")
     parser.add_argument("--out", type=Path, required=True, help="the run's folder (must not exist or be empty)")
     parser.add_argument("--epochs", type=int, default=None,
