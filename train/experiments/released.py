@@ -29,7 +29,8 @@ claim gets a verdict for both (docs/results/paper/figures.md).
   probability 0.25, food also growing with p 0.2, food spawning near the agent over the released windows, validated
   as released (predators at 0.25, one reborn at a random cell each step).
 
-The three "as released" experiments also train the released network, which reads the inventory 8 times.
+The "as released" experiments also train the released network, which reads the inventory 8 times, but for
+``scavenging-released``: the released scavenging network slices its input wrongly, which is not reproduced.
 """
 
 from __future__ import annotations
