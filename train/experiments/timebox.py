@@ -204,13 +204,12 @@ def kind_labels(kinds: list[tuple[tuple[str, str], ...]]) -> list[str]:
     return labels
 
 
-def _left(job) -> float:
-    """The share of a job's steps still to train (its heartbeat's step, where it ran under a sweep before)."""
+def _left(job, total_steps: int) -> float:
+    """The share of a job's ``total_steps`` still to train (its heartbeat's step, where it ran before)."""
     from train.runlog import PROGRESS_FILE, read_heartbeat
 
     beat = read_heartbeat(Path(job.run_dir) / PROGRESS_FILE)
-    total = TrainConfig.from_dict(job.config).total_steps
-    return 1.0 if beat is None else max(0.0, 1.0 - int(beat["step"]) / total)
+    return 1.0 if beat is None else max(0.0, 1.0 - int(beat["step"]) / total_steps)
 
 
 def estimate(jobs: list, workers: int, say, measure=measure_speed_together) -> float:
@@ -228,11 +227,11 @@ def estimate(jobs: list, workers: int, say, measure=measure_speed_together) -> f
     say(f"measuring this machine's speed on each kind of run ({len(kinds)}; a few seconds each) ...")
     seconds = []
     for label, group in zip(kind_labels(list(kinds)), kinds.values()):
-        cfg = TrainConfig.from_dict(group[0].config)
+        configs = [TrainConfig.from_dict(j.config) for j in group]
         speed = measure(group[0].config, min(workers, len(group)))
-        each = [speed.run_seconds(TrainConfig.from_dict(j.config), margin=1.0) * _left(j) for j in group]
+        each = [speed.run_seconds(c, margin=1.0) * _left(j, c.total_steps) for j, c in zip(group, configs)]
         seconds += each
-        say(f"  {label}: {speed.describe(cfg)}; {len(group)} run(s), {_duration(sum(each))} in all")
+        say(f"  {label}: {speed.describe(configs[0])}; {len(group)} run(s), {_duration(sum(each))} in all")
     total = makespan(seconds, workers)
     say(f"estimate: {len(seconds)} run(s), {min(workers, len(seconds))} at a time: about {_duration(total)} on this "
         f"machine, more rather than less (checkpoints, late greedy epochs and other work add to it; --jobs N sets "
