@@ -51,6 +51,7 @@ SMOKE_TASKS = {
     "factory-behaviour": None,
     "salad-shaping-released": None,
     "scavenging-released": None,
+    "scavenging-released-fig4": None,
 }
 """Which tasks of each experiment the smoke fixture runs (None: all of them)."""
 SMOKE_CONDITIONS = {
@@ -65,6 +66,7 @@ SMOKE_CONDITIONS = {
     "factory-behaviour": ["released-eps-floor-0.3"],
     "salad-shaping-released": ["env-shaping-sparse"],
     "scavenging-released": ["env-shaping-540k"],
+    "scavenging-released-fig4": ["dynamic-episodic"],
 }
 """Which conditions of an experiment the smoke fixture runs where not all (each new kind of setting once)."""
 

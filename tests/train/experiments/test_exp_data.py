@@ -435,3 +435,16 @@ def test_scavenging_released_arms_train_the_released_world_and_differ_in_the_spa
         "env-shaping-540k": "linear:1:0:540000", "env-shaping-1080k": "linear:1:0:1080000"}
     for cfg in arms.values():
         assert cfg == plain.replace(shaping=cfg.env.shaping)
+
+
+def test_scavenging_released_fig4_is_fig_4_in_the_released_world_with_the_sweeps_dynamism():
+    exp, world = get_experiment("scavenging-released-fig4"), get_experiment("scavenging-released")
+    [plain] = world.select_conditions("scavenging", ["no-shaping"])
+    released = job_config(world, "scavenging", plain, world.budget("paper"))
+    arms = {c.name: job_config(exp, "scavenging", c, exp.budget("paper")) for c in exp.conditions["scavenging"]}
+    assert arms["dynamic-reset-free"] == released.replace(dynamism=0.4)
+    assert arms["static-reset-free"] == released.replace(dynamism=0.0)
+    for name in ("static", "dynamic"):
+        episodic = arms[f"{name}-episodic"]
+        assert not episodic.env.reset_free
+        assert episodic == arms[f"{name}-reset-free"].replace(reset_free=False)
