@@ -38,7 +38,7 @@ def first_reaching(steps: list[int], matrix: np.ndarray, level: float) -> list[i
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Print where the two runs' intervals lie apart, their values at ``--at``, and when each seed reached ``--reach``."""
+    """Print where the two runs' intervals lie apart, their values at ``--at``, and when seeds reached ``--reach``."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run_a", type=Path)
     parser.add_argument("run_b", type=Path)
