@@ -3,7 +3,8 @@ r"""A uniform random policy in a released script's own environment: the dynamics
 ``python -m gridtasks.random_policy`` counts what a random policy completes in ecorl's worlds; this counts the same
 in the released environment class, built with the environment settings of one sweep point of a released script
 (``--set`` picks it, as in ``run_released.py``), non-episodic: the solves per world over ``--steps`` steps (95 %
-interval over worlds), the first solve's step, and for scavenging the steps on which a predator caught the agent.
+interval over worlds), the first solve's step, and for scavenging the steps on which a predator caught the agent,
+and of those the steps caught by a predator that appeared on the agent's own cell (ecorl's never do).
 World ``s`` seeds Python's ``random`` and NumPy's global generator with ``s`` (the release draws resource growth
 and predator moves from them) and the environment with ``s``::
 
@@ -54,13 +55,15 @@ def script_point(checkout: Path, script: str, settings: dict) -> tuple[type, dic
     return classes.pop(), dict(variant["env_kwargs"])
 
 
-def one_world(env_class: type, kwargs: dict, seed: int, steps: int) -> tuple[int, int, int]:
-    """(solves, the first solve's step or steps + 1, steps caught by a predator) of one non-episodic world."""
+def one_world(env_class: type, kwargs: dict, seed: int, steps: int) -> tuple[int, int, int, int]:
+    """(solves, the first solve's step or steps + 1, steps caught by a predator, of those the steps caught by one
+    born on the agent's cell) of one non-episodic world.
+    """
     random.seed(seed)
     np.random.seed(seed)
     env = env_class(**{**kwargs, "time_horizon": 0, "end_on_task_completion": False})
     env.reset(seed=seed)
-    solves, first, caught = 0, steps + 1, 0
+    solves, first, caught, caught_by_born_on_agent = 0, steps + 1, 0, 0
     for t in range(1, steps + 1):
         _, reward, _, info = env.step(random.randrange(env.action_space.n))
         solved = bool(info.get("solved"))
@@ -68,7 +71,13 @@ def one_world(env_class: type, kwargs: dict, seed: int, steps: int) -> tuple[int
             solves += 1
             first = min(first, t)
         caught += (reward - 100 * solved) <= -100  # the sparse task pays 100; a catch costs monster_penalty
-    return solves, first, caught
+        monsters = getattr(env, "monsters", [])
+        for m in monsters:
+            if m.life == 0:  # placed this step, not moved yet
+                m.born_on_agent = bool(np.array_equal(m.cur_pos, env.agent_pos))
+        caught_by_born_on_agent += any(getattr(m, "born_on_agent", False) and np.array_equal(m.cur_pos, env.agent_pos)
+                                       for m in monsters)
+    return solves, first, caught, caught_by_born_on_agent
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -80,11 +89,13 @@ def main(argv: list[str] | None = None) -> None:
     if kwargs.get("make_rtype") != "sparse":
         raise SystemExit("pick a sparse-reward sweep point (--set make_rtype=sparse): solves are read off its reward")
     results = np.array([one_world(env_class, kwargs, s, args.steps) for s in range(args.seeds)], dtype=float)
-    solves, first, caught = results.T
-    print("| script point | solves per world (± 95 % CI) | first solve, mean / median step | steps caught per world |")
-    print("|---|---|---|---|")
+    solves, first, caught, by_born_on_agent = results.T
+    print("| script point | solves per world (± 95 % CI) | first solve, mean / median step | steps caught per world | "
+          "of those by predators born on the agent's cell |")
+    print("|---|---|---|---|---|")
     print(f"| {args.script} {' '.join(args.set)} | {solves.mean():.2f} ± {half_width(solves):.2f} | "
-          f"{first.mean():.0f} / {np.median(first):.0f} | {caught.mean():.0f} ± {half_width(caught):.0f} |")
+          f"{first.mean():.0f} / {np.median(first):.0f} | {caught.mean():.0f} ± {half_width(caught):.0f} | "
+          f"{by_born_on_agent.mean():.0f} ± {half_width(by_born_on_agent):.0f} |")
 
 
 def half_width(values: np.ndarray) -> float:
