@@ -31,8 +31,8 @@ claim gets a verdict for both (docs/results/paper/figures.md).
 * ``scavenging-released-fig4``: Fig. 4's scavenging as the released sweep ran it: predators still or stepping at
   random with probability 0.4, in the released world (food growing), validated as released.
 
-The "as released" experiments also train the released network, which reads the inventory 8 times, but for
-``scavenging-released``: the released scavenging network slices its input wrongly, which is not reproduced.
+The "as released" experiments also train the released network, which reads the inventory 8 times, but for the two
+scavenging ones: the released scavenging network slices its input wrongly, which is not reproduced.
 """
 
 from __future__ import annotations
