@@ -12,23 +12,18 @@ what the sentences "its interval lies above the other's at N evaluations" in doc
 from __future__ import annotations
 
 import argparse
-import csv
 from pathlib import Path
 
 import numpy as np
 
+from train.experiments.report.runs import read_metrics
 from train.experiments.report.stats import bootstrap_ci
 
 
 def success_matrix(run_dir: Path) -> tuple[list[int], np.ndarray]:
-    """The evaluation steps of a run directory and its (steps, seeds) success matrix (NaN where a seed lacks one)."""
-    rows = list(csv.DictReader((run_dir / "metrics.csv").open()))
-    steps = sorted({int(r["step"]) for r in rows})
-    seeds = sorted({int(r["seed"]) for r in rows})
-    matrix = np.full((len(steps), len(seeds)), np.nan)
-    for r in rows:
-        matrix[steps.index(int(r["step"])), seeds.index(int(r["seed"]))] = float(r["success"])
-    return steps, matrix
+    """The evaluation steps of a run directory and its (steps, seeds) success matrix, read as the reports read it."""
+    steps, values = read_metrics(run_dir / "metrics.csv", "success")
+    return [int(s) for s in steps], values
 
 
 def first_reaching(steps: list[int], matrix: np.ndarray, level: float) -> list[int | None]:

@@ -30,9 +30,9 @@ def quick(seeds: int, steps: int | Mapping[str, int], eval_every: int = 10_000) 
                   task_overrides={"foodcollector": {"eval_rollouts": 5}})
 
 
-def dynamism_conditions(task: str) -> tuple[Condition, ...]:
-    """{static, dynamic} x {episodic, reset-free} (Fig. 4)."""
-    p = DYNAMIC_P[task]
+def dynamism_conditions(task: str, p: float | None = None) -> tuple[Condition, ...]:
+    """{static, dynamic} x {episodic, reset-free} (Fig. 4), dynamic at ``p`` (the task's `DYNAMIC_P` by default)."""
+    p = DYNAMIC_P[task] if p is None else p
     out = []
     for dyn_name, dyn in (("static", 0.0), ("dynamic", p)):
         for mode, reset_free in (("episodic", False), ("reset-free", True)):

@@ -266,11 +266,10 @@ def _scavenging_released() -> Experiment:
 
 def _scavenging_released_fig4() -> Experiment:
     """Fig. 4's scavenging as the released sweep ran it, in the released world with its validation."""
-    conditions = tuple(
-        Condition(c.name, c.label.replace(f"p={DYNAMIC_P['scavenging']:g}", f"p={RELEASED_FIG4_SCAVENGING_P:g}"),
-                  {**c.overrides, **RELEASED_SCAVENGING_WORLD, "reward": "sparse", **RELEASED_SCAVENGING_EVAL,
-                   "dynamism": RELEASED_FIG4_SCAVENGING_P if c.overrides["dynamism"] else 0.0})
-        for c in dynamism_conditions("scavenging"))
+    world = {k: v for k, v in RELEASED_SCAVENGING_WORLD.items() if k != "dynamism"}
+    conditions = tuple(Condition(c.name, c.label, {**c.overrides, **world, "reward": "sparse",
+                                                   **RELEASED_SCAVENGING_EVAL})
+                       for c in dynamism_conditions("scavenging", RELEASED_FIG4_SCAVENGING_P))
     return Experiment(
         "scavenging-released-fig4", "Fig. 4 (scavenging), as released", "Scavenging's dynamism and resets as released",
         "Fig. 4's scavenging as the released sweep trained it: predators always chasing or stepping at random with "
