@@ -52,6 +52,7 @@ SMOKE_TASKS = {
     "salad-shaping-released": None,
     "scavenging-released": None,
     "scavenging-released-fig4": None,
+    "walls-released": None,
 }
 """Which tasks of each experiment the smoke fixture runs (None: all of them)."""
 SMOKE_CONDITIONS = {
@@ -67,6 +68,7 @@ SMOKE_CONDITIONS = {
     "salad-shaping-released": ["env-shaping-sparse"],
     "scavenging-released": ["env-shaping-540k"],
     "scavenging-released-fig4": ["dynamic-episodic"],
+    "walls-released": ["env-shaping-sparse-reset-free"],
 }
 """Which conditions of an experiment the smoke fixture runs where not all (each new kind of setting once)."""
 

@@ -15,7 +15,7 @@ sentence; its entry was dumped again from its code, its two earlier arms' jobs c
 ``hunting-behaviour`` gained a static arm (``static-eps-floor-0.3-inv8``) and a sentence, and ``factory-behaviour``
 was appended; both dumped from their code, ``hunting-behaviour``'s earlier jobs checked unchanged first.
 ``salad-shaping-released`` and ``scavenging-released`` were appended (dumped from their code; nothing else changed),
-then ``scavenging-released-fig4`` the same way.
+then ``scavenging-released-fig4`` and ``walls-released`` the same way.
 """
 
 from __future__ import annotations

@@ -448,3 +448,13 @@ def test_scavenging_released_fig4_is_fig_4_in_the_released_world_with_the_sweeps
         episodic = arms[f"{name}-episodic"]
         assert not episodic.env.reset_free
         assert episodic == arms[f"{name}-reset-free"].replace(reset_free=False)
+
+
+def test_walls_released_is_walls_with_the_released_network():
+    exp, paper = get_experiment("walls-released"), get_experiment("walls")
+    assert [c.name for c in exp.conditions["walled-salad"]] == [c.name for c in paper.conditions["walled-salad"]]
+    for ours, theirs in zip(exp.conditions["walled-salad"], paper.conditions["walled-salad"]):
+        released = job_config(exp, "walled-salad", ours, exp.budget("paper"))
+        shipped = job_config(paper, "walled-salad", theirs, paper.budget("paper"))
+        assert released.dqn.inventory_repeat == 8 and shipped.dqn.inventory_repeat == 1
+        assert released == shipped.replace(inventory_repeat=8)
