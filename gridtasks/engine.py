@@ -12,7 +12,8 @@ this one (a world's reset and step, and the batched loops, on one thread or acro
 re-exports the others' interface.
 
 A step is the sequence of phases
-    act -> move_creatures -> move_predators -> grow_resources -> wither -> reward -> observe
+    act -> move_creatures -> move_predators -> grow_resources -> replenish_predators -> wither -> reward
+    -> observe
 each a small compiled function of (world, rules) that tests can call on its own. The order is the original
 code's: new objects grow before everything ages, so an object with lifespan L can be picked up on L - 1
 steps after the one it grew in. In hunting (``creatures_before_hands``) the deer move between the
@@ -49,6 +50,9 @@ from gridtasks.phases import (
     move_creatures,
     move_predators,
     observe,
+    predator_alive,
+    predator_caught,
+    replenish_predators,
     respawn_predator,
     task_reward,
     wither,
@@ -73,6 +77,7 @@ from gridtasks.records import (
     ONE_TIME,
     PICK_UP,
     PLACE,
+    PREDATOR_RESPAWN_IDS,
     REWARD_MODE_IDS,
     SOUTH,
     SPARSE,
@@ -115,6 +120,7 @@ __all__ = [
     "PICKABLE",
     "PICK_UP",
     "PLACE",
+    "PREDATOR_RESPAWN_IDS",
     "REWARD_MODE_IDS",
     "SOUTH",
     "SPARSE",
@@ -142,11 +148,14 @@ __all__ = [
     "nearest_distance",
     "new_rules",
     "observe",
+    "predator_alive",
+    "predator_caught",
     "place_random",
     "randint",
     "random_step",
     "reset_world",
     "reset_worlds",
+    "replenish_predators",
     "reset_worlds_threaded",
     "respawn_predator",
     "rules_dtype",
@@ -224,8 +233,10 @@ def step_world(w, r, action: int, obs):
             w.inventory = 0  # the world goes on: the completed task's object is consumed (and regrows)
     if not creatures_first:
         move_creatures(w, r, s)
-    caught = move_predators(w, r, start_x, start_y) if r.num_predators > 0 else False
+    move_predators(w, r, start_x, start_y)
     grow_resources(w, r, s)
+    replenish_predators(w, r)
+    caught = predator_caught(w, r)
     wither(w, r)
     reward = task_reward(w, r, picked, made, placed_on, dropped, solved)
     if caught:

@@ -39,6 +39,7 @@ from gridtasks.records import (
     ONE_TIME,
     PICK_UP,
     PLACE,
+    RESPAWN_ORIGINAL,
     SPARSE,
     STEP_DX,
     STEP_DY,
@@ -122,22 +123,39 @@ def move_creatures(w, r, s: float) -> None:
 
 @nb.njit(cache=True)
 def respawn_predator(w, r, i: int) -> None:
-    """Put predator i, newborn, on a uniformly chosen non-wall interior cell other than the agent's."""
+    """Put predator i, newborn, on a uniformly chosen interior cell: under the original rule one holding no
+    object, other than the agent's start cell (so possibly the agent's own); under ``off-agent`` any non-wall
+    cell other than the agent's.
+    """
     n = r.n
+    original = r.predator_respawn == RESPAWN_ORIGINAL
     while True:
         x, y = 1 + randint(w, n - 2), 1 + randint(w, n - 2)
-        if PASSABLE[w.grid[y, x]] and not (x == w.agent[0] and y == w.agent[1]):
+        if original:
+            if w.grid[y, x] == _EMPTY and not (x == w.start[0] and y == w.start[1]):
+                break
+        elif PASSABLE[w.grid[y, x]] and not (x == w.agent[0] and y == w.agent[1]):
             break
     w.pred[i, 0], w.pred[i, 1], w.pred_age[i] = x, y, 0
 
 
 @nb.njit(cache=True)
-def move_predators(w, r, tx: int, ty: int) -> bool:
-    """Predators chase the cell (tx, ty) the agent stood on before its move (greedy L1 step) or, with
-    probability p, take a random one of N, W, S, E, stay; they live ``predator_lifespan`` steps and then
-    reappear at random. Returns True if one ends the step on the agent's cell.
+def predator_alive(w, r, i: int) -> bool:
+    """Predator i has lived fewer than ``predator_lifespan`` steps (a dead one waits in place, unseen and
+    harmless, for `replenish_predators`).
+    """
+    return w.pred_age[i] < r.predator_lifespan
+
+
+@nb.njit(cache=True)
+def move_predators(w, r, tx: int, ty: int) -> None:
+    """Live predators chase the cell (tx, ty) the agent stood on before its move (greedy L1 step) or, with
+    probability p, take a random one of N, W, S, E, stay. After ``predator_lifespan`` steps a predator dies:
+    under ``off-agent`` it is reborn at once; under the original rule `replenish_predators` brings it back.
     """
     for i in range(r.num_predators):
+        if not predator_alive(w, r, i):
+            continue
         x, y = w.pred[i, 0], w.pred[i, 1]
         if uniform(w) < r.predator_wander_prob:
             k = randint(w, 5)  # N, W, S, E or stay, as the original's monsters
@@ -153,14 +171,30 @@ def move_predators(w, r, tx: int, ty: int) -> bool:
         if PASSABLE[w.grid[ny, nx]]:
             w.pred[i, 0], w.pred[i, 1] = nx, ny
         w.pred_age[i] += 1
-        if w.pred_age[i] >= r.predator_lifespan:
+        if not predator_alive(w, r, i) and r.predator_respawn != RESPAWN_ORIGINAL:
             respawn_predator(w, r, i)
-    caught = False
-    ax, ay = w.agent[0], w.agent[1]
+
+
+@nb.njit(cache=True)
+def replenish_predators(w, r) -> None:
+    """The original rule's replenishment, after the resources grew: one dead predator (the first) is reborn
+    per step, so two that die on the same step come back a step apart.
+    """
+    if r.predator_respawn != RESPAWN_ORIGINAL:
+        return
     for i in range(r.num_predators):
-        if w.pred[i, 0] == ax and w.pred[i, 1] == ay:
-            caught = True
-    return caught
+        if not predator_alive(w, r, i):
+            respawn_predator(w, r, i)
+            return
+
+
+@nb.njit(cache=True)
+def predator_caught(w, r) -> bool:
+    """A live predator ends the step on the agent's cell (a newborn there included)."""
+    for i in range(r.num_predators):
+        if predator_alive(w, r, i) and w.pred[i, 0] == w.agent[0] and w.pred[i, 1] == w.agent[1]:
+            return True
+    return False
 
 
 @nb.njit(cache=True)
@@ -251,6 +285,8 @@ def observe(w, r, obs) -> None:
             obs[ch * VIEW_CELLS + vy * VIEW + vx] = 1.0
     pch = r.channel[Code.PREDATOR]
     for i in range(r.num_predators):
+        if not predator_alive(w, r, i):
+            continue
         vx, vy = w.pred[i, 0] - ax + half, w.pred[i, 1] - ay + half
         if 0 <= vx < VIEW and 0 <= vy < VIEW:
             obs[pch * VIEW_CELLS + vy * VIEW + vx] = 1.0

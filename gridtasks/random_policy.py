@@ -58,6 +58,8 @@ class RandomPolicyStats:
     """Step of each seed's first completion (1-based); ``steps + 1`` where it never came."""
     counts: dict[str, float]
     """Mean number on the grid per resource group, over steps and seeds."""
+    caught: np.ndarray
+    """Steps per seed on which a predator caught the agent (all zero where the task has none)."""
 
     @property
     def solves_mean(self) -> float:
@@ -67,7 +69,12 @@ class RandomPolicyStats:
     @property
     def solves_ci(self) -> float:
         """Half-width of the normal 95 % confidence interval of ``solves_mean``."""
-        return float(1.96 * self.solves.std(ddof=1) / np.sqrt(self.seeds)) if self.seeds > 1 else float("nan")
+        return self._ci(self.solves)
+
+    @staticmethod
+    def _ci(values: np.ndarray) -> float:
+        """Half-width of the normal 95 % confidence interval of the mean of ``values`` (one per seed)."""
+        return float(1.96 * values.std(ddof=1) / np.sqrt(len(values))) if len(values) > 1 else float("nan")
 
     @property
     def never_solved(self) -> int:
@@ -75,15 +82,16 @@ class RandomPolicyStats:
         return int((self.first_solve > self.steps).sum())
 
     def row(self) -> str:
-        """One markdown table row: name, solves [CI], first-solve mean / median, never-solved, counts."""
+        """One markdown table row: name, solves [CI], first-solve mean / median, never-solved, counts, caught."""
         first = self.first_solve.astype(np.float64)
         counts = ", ".join(f"{k} {v:.2f}" for k, v in self.counts.items())
+        caught = f"{self.caught.mean():.0f} ± {self._ci(self.caught):.0f}" if self.caught.any() else "—"
         return (f"| {self.name} | {self.solves_mean:.2f} ± {self.solves_ci:.2f} | {first.mean():.0f} / "
-                f"{np.median(first):.0f} | {self.never_solved} | {counts} |")
+                f"{np.median(first):.0f} | {self.never_solved} | {counts} | {caught} |")
 
 
 HEADER = ("| setting | solves per seed (± 95 % CI) | first solve, mean / median step | seeds never solved | "
-          "mean count on the grid |\n|---|---|---|---|---|")
+          "mean count on the grid | steps caught by a predator per seed (± 95 % CI) |\n|---|---|---|---|---|---|")
 
 
 def measure(task: str, knobs: dict, seeds: int = 32, steps: int = 20_000, seed: int = 0, name: str = "",
@@ -98,18 +106,20 @@ def measure(task: str, knobs: dict, seeds: int = 32, steps: int = 20_000, seed: 
     rng = np.random.default_rng(seed)
     groups = RESOURCES[task]
     solves = np.zeros(seeds, dtype=np.int64)
+    caught = np.zeros(seeds, dtype=np.int64)
     first = np.full(seeds, steps + 1, dtype=np.int64)
     totals = np.zeros(len(groups), dtype=np.float64)
     for t in tqdm(range(1, steps + 1), desc=name or task, disable=not progress, leave=False):
         _, _, _, _, info = env.step(rng.integers(0, 7, seeds))
         solved = info["solved"]
         solves += solved
+        caught += info["caught"]
         first[solved & (first > steps)] = t
         on_grid = GROUP[env.worlds["grid"]]
         for k, g in enumerate(groups):
             totals[k] += np.count_nonzero(on_grid == g)
     counts = {Code(g).name.lower(): totals[k] / (steps * seeds) for k, g in enumerate(groups)}
-    return RandomPolicyStats(name or task, seeds, steps, solves, first, counts)
+    return RandomPolicyStats(name or task, seeds, steps, solves, first, counts, caught)
 
 
 def parse_params(pairs: list[str]) -> dict:

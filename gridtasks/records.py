@@ -52,6 +52,9 @@ STEP_DY = np.array([-1, 0, 1, 0, 0], dtype=np.int64)
 SPARSE, SUBGOAL, ONE_TIME, DISTANCE, WAYPOINT = range(5)
 REWARD_MODE_IDS = {"sparse": SPARSE, "subgoal": SUBGOAL, "one_time": ONE_TIME, "distance": DISTANCE,
                    "waypoint": WAYPOINT}
+RESPAWN_ORIGINAL, RESPAWN_OFF_AGENT = range(2)
+PREDATOR_RESPAWN_IDS = {"original": RESPAWN_ORIGINAL, "off-agent": RESPAWN_OFF_AGENT}
+"""How dead predators come back (`ScavengingConfig.predator_respawn`)."""
 TASK_REWARD = 100.0
 SUBGOAL_REWARD = 1.0
 LOST_PROGRESS_PENALTY = -100.0
@@ -131,6 +134,7 @@ def rules_dtype(n: int) -> np.dtype:
             ("predator_lifespan", np.int64),
             ("predator_wander_prob", np.float64),
             ("predator_penalty", np.float64),
+            ("predator_respawn", np.int64),  # RESPAWN_ORIGINAL or RESPAWN_OFF_AGENT
             ("stage_on_pickup", np.int64, (NC,)),  # subgoal stage reached by picking up a code, -1 none
             ("stage_on_made", np.int64, (NC,)),  # subgoal stage reached by making a code, -1 none
             ("stage_on_placed", np.int64, (NC,)),  # stage reached by combining the carried item onto a code, -1 none

@@ -28,7 +28,8 @@ def render_world(world: np.void, rules: np.void, channels=(), tile: int = TILE) 
     _draw_grid_lines(frame, n, tile)
     _draw_labels(frame, grid, tile)
     for i in range(int(rules["num_predators"])):
-        _draw_predator(frame, world["pred"][i], tile)
+        if world["pred_age"][i] < rules["predator_lifespan"]:  # a dead one waits, unseen, to be reborn
+            _draw_predator(frame, world["pred"][i], tile)
     ax, ay = (int(v) for v in world["agent"])
     centre = (ax * tile + tile // 2, ay * tile + tile // 2)
     cv2.circle(frame, centre, tile // 3, AGENT_COLOR, -1, cv2.LINE_AA)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gridtasks.codes import Code
-from gridtasks.engine import MAX_PREDATORS, code_mask
+from gridtasks.engine import MAX_PREDATORS, PREDATOR_RESPAWN_IDS, code_mask
 from gridtasks.env import GridTaskEnv, SpawnRules, check_positive_int, check_probability
 
 
@@ -24,6 +24,11 @@ class ScavengingConfig(SpawnRules):
     """Predators alive at any time."""
     predator_lifespan: int = 10
     """Steps a predator lives before it reappears at a random cell."""
+    predator_respawn: str = "original"
+    """Where and when a dead predator comes back. ``original`` (default, the original code's replenishment):
+    one per step, after the food grew, on a random cell holding no object other than the agent's start cell,
+    so possibly on the agent, which it then catches at once. ``off-agent`` (ecorl's rule before 2026-12, which
+    the runs shipped before then trained with): at once, on a random non-wall cell other than the agent's."""
     predator_penalty: float = 100.0
     """Cost of each step the agent shares a cell with a predator (part of the task in every mode)."""
     horizon: int = 200
@@ -41,6 +46,9 @@ class ScavengingConfig(SpawnRules):
         check_positive_int("horizon", self.horizon)
         check_positive_int("predator_count", self.predator_count, 0)
         check_probability("food_growth", self.food_growth)
+        if self.predator_respawn not in PREDATOR_RESPAWN_IDS:
+            raise ValueError(f"predator_respawn must be one of {', '.join(map(repr, PREDATOR_RESPAWN_IDS))}, "
+                             f"got {self.predator_respawn!r}")
         if self.predator_count > MAX_PREDATORS:
             raise ValueError(f"predator_count must be an integer in [0, {MAX_PREDATORS}], "
                              f"got {self.predator_count!r}")
@@ -72,7 +80,10 @@ class ScavengingEnv(GridTaskEnv):
     Predators are not grid objects: they walk over food. Each step (after the agent acts) a predator takes
     the greedy L1 step toward the agent (ties: N, W, S, E, stay); with probability p (dynamism) it moves
     to a uniformly random one of N, W, S, E, stay instead (the original's rule). After
-    ``predator_lifespan`` steps it reappears at a random cell other than the agent's. Food is replenished
+    ``predator_lifespan`` steps it dies; one dead predator per step is reborn, after the food grew, on a random
+    cell holding no object other than the agent's start cell, so possibly on the agent, whom it catches at
+    once (the original's rule; ``predator_respawn="off-agent"``: reborn at once, never on the agent's cell).
+    A dead predator waiting for its turn is neither seen nor felt. Food is replenished
     to ``food_count`` on the grid, one per step (it may appear under the agent, as in the original);
     ``food_growth`` p > 0 also grows one more with probability p per step and makes food wither, as salad's
     ingredients do (the released Fig. 5 script's world).
@@ -94,6 +105,7 @@ class ScavengingEnv(GridTaskEnv):
         r["near_spawn"][Code.FOOD] = not self.ecology.shaping.is_zero
         r["num_predators"] = cfg.predator_count
         r["predator_lifespan"] = cfg.predator_lifespan
+        r["predator_respawn"] = PREDATOR_RESPAWN_IDS[cfg.predator_respawn]
         r["predator_penalty"] = cfg.predator_penalty
         r["predator_wander_prob"] = self.ecology.dynamism
         r["targets"][Code.EMPTY] = [code_mask(Code.FOOD), 0, 0]

@@ -15,7 +15,7 @@ EPISODIC = ["headline", "--budget", "smoke", "--condition", "static-episodic"]
 RESET_FREE = ["headline", "--budget", "smoke", "--condition", "static-reset-free"]
 
 
-def _run(cwd: Path, args: list[str], seconds: int = 250, **env: str) -> subprocess.CompletedProcess:
+def _run(cwd: Path, args: list[str], seconds: float = 250, **env: str) -> subprocess.CompletedProcess:
     """The script in ``cwd`` on the CPU, a chunk of at most ``seconds``."""
     env = {**os.environ, "DEVICE": "cpu", "CHUNK_S": str(seconds), "OUT": str(cwd / "out"),
            "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}", **env}
@@ -24,7 +24,8 @@ def _run(cwd: Path, args: list[str], seconds: int = 250, **env: str) -> subproce
 
 
 def test_chunks_resume_until_done_side_by_side_and_bring_back_one_small_archive(tmp_path):
-    first = _run(tmp_path, EPISODIC, seconds=1)  # stopped at once: an interrupted run, or none started yet
+    # stopped at once, before the trainer can start (a whole second let a warm smoke run finish at times)
+    first = _run(tmp_path, EPISODIC, seconds=0.2)
     assert first.returncode == 124, first.stdout + first.stderr
     assert "== not finished: run this again" in first.stdout
     finished = _run(tmp_path, [*EPISODIC, "+", *RESET_FREE])  # a lone "+": two runs side by side

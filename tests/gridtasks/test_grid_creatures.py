@@ -266,30 +266,78 @@ def test_food_is_worth_100_even_when_caught():
     assert reward == 0.0  # +100 - 100
 
 
-def test_predators_reappear_after_their_lifespan():
-    env = scavenging(predator_lifespan=3)
-    world = world_from_map(env, EMPTY7, agent=(5, 5), predators=[(1, 1)])
+@pytest.mark.parametrize("respawn", ["original", "off-agent"])
+def test_predators_reappear_after_their_lifespan(respawn):
+    env = scavenging(predator_lifespan=3, predator_respawn=respawn)
+    world = world_from_map(env, EMPTY7, agent=(5, 5), predators=[(1, 1)], start=(4, 4))
     trail, ages = [], []
     for _ in range(3):
         env.step(INTERACT)
         trail.append(tuple(int(v) for v in world["pred"][0]))
         ages.append(int(world["pred_age"][0]))
     assert trail[:2] == [(1, 2), (1, 3)]
-    assert ages == [1, 2, 0]  # reborn on its third step
+    assert ages == [1, 2, 0]  # reborn on its third step (alone, it is the step's one)
     x, y = trail[2]
-    assert 1 <= x <= 5 and 1 <= y <= 5 and (x, y) != (5, 5)
+    assert 1 <= x <= 5 and 1 <= y <= 5 and (x, y) != {"original": (4, 4), "off-agent": (5, 5)}[respawn]
 
 
-def test_reborn_predators_appear_at_random_cells_never_the_agents():
-    env = scavenging(predator_lifespan=1, horizon=400)  # one episode of 300 steps
-    world = world_from_map(env, EMPTY7, agent=(3, 3), predators=[(1, 1)])
+FOOD_AT_2_2 = EMPTY7[:8 * 2 + 2] + "F" + EMPTY7[8 * 2 + 3:]
+"""EMPTY7 with a food at (2, 2)."""
+
+
+@pytest.mark.parametrize("respawn, never", [("original", {(4, 4), (2, 2)}), ("off-agent", {(3, 3)})])
+def test_reborn_predators_appear_at_random_cells_but_the_excluded_ones(respawn, never):
+    """The original rule: any cell holding no object but the agent's start cell (4, 4), the agent's own (3, 3)
+    included; off-agent: any non-wall cell, food included, but the agent's.
+    """
+    env = scavenging(predator_lifespan=1, horizon=400, food_count=1, predator_respawn=respawn)
+    world = world_from_map(env, FOOD_AT_2_2, agent=(3, 3), predators=[(1, 1)], start=(4, 4))
     seen = set()
     for _ in range(300):
         env.step(INTERACT)
         assert world["pred_age"][0] == 0
         seen.add(tuple(int(v) for v in world["pred"][0]))
-    assert (3, 3) not in seen
-    assert seen == {(x, y) for x in range(1, 6) for y in range(1, 6)} - {(3, 3)}
+    assert seen == {(x, y) for x in range(1, 6) for y in range(1, 6)} - never
+
+
+def test_a_predator_reborn_on_the_agent_catches_it_at_once():
+    env = scavenging(predator_lifespan=1, horizon=400)
+    world = world_from_map(env, EMPTY7, agent=(3, 3), predators=[(1, 1)], start=(4, 4))
+    births_on_agent = 0
+    for _ in range(300):
+        _, reward, _, _, info = env.step(INTERACT)
+        on_agent = tuple(world["pred"][0]) == (3, 3)
+        births_on_agent += on_agent
+        assert info["caught"] == on_agent and reward == (-100.0 if on_agent else 0.0)
+    assert births_on_agent > 0
+
+
+def test_two_predators_dying_together_come_back_a_step_apart_the_waiting_one_unseen_and_harmless():
+    env = scavenging(predator_count=2, predator_lifespan=2)
+    # both die on the first step (age 1 -> 2): the first is reborn then, the second a step later
+    world = world_from_map(env, EMPTY7, agent=(3, 3), predators=[(1, 3), (3, 4)], pred_ages=[1, 1],
+                           start=(5, 5))
+    obs, reward, _, _, info = env.step(INTERACT)
+    assert list(world["pred_age"][:2]) == [0, 2]  # the second is dead, left where it died: (3, 3), on the agent
+    assert tuple(world["pred"][1]) == (3, 3)
+    first = tuple(int(v) for v in world["pred"][0])
+    assert info["caught"] == (first == (3, 3))
+    predator = 3
+    assert obs[predator * 25:predator * 25 + 25].sum() == (1 if first in _view_of((3, 3)) else 0)
+    env.step(INTERACT)
+    assert list(world["pred_age"][:2]) == [1, 0]
+
+
+def _view_of(agent):
+    """The cells of the 5x5 view around ``agent`` on EMPTY7's interior."""
+    return {(x, y) for x in range(agent[0] - 2, agent[0] + 3) for y in range(agent[1] - 2, agent[1] + 3)}
+
+
+def test_a_dead_predator_does_not_move():
+    env = scavenging(predator_count=2, predator_lifespan=1)
+    world = world_from_map(env, EMPTY7, agent=(5, 5), predators=[(1, 1), (1, 2)])
+    env.step(INTERACT)  # both die moving; the first is reborn, the second waits at (1, 3)
+    assert list(world["pred_age"][:2]) == [0, 1] and tuple(world["pred"][1]) == (1, 3)
 
 
 def test_predators_with_p1_move_at_random():

@@ -56,3 +56,21 @@ def test_cli_refuses_a_parameter_no_setting_has_and_a_bad_value_in_one_line(caps
 def test_unknown_task_is_refused():
     with pytest.raises(ValueError, match="unknown grid task"):
         random_policy.measure("chess", {})
+
+
+def test_scavenging_counts_the_steps_a_predator_caught_the_agent():
+    stats = random_policy.measure("scavenging", {"dynamism": 0.25}, seeds=4, steps=2_000)
+    assert stats.caught.shape == (4,) and (stats.caught > 0).all() and (stats.caught < 2_000).all()
+    assert stats.row().endswith(f"| {stats.caught.mean():.0f} ± {stats._ci(stats.caught):.0f} |")
+    salad = random_policy.measure("salad", {"dynamism": 0.1}, seeds=2, steps=200)
+    assert not salad.caught.any() and salad.row().endswith("| — |")
+
+
+def test_the_original_predator_respawn_catches_a_random_agent_more_often():
+    """Newborn predators may land on the agent under the original rule (measured at 32 seeds x 20 000 steps:
+    4 882 against 4 569 caught steps, docs/fidelity.md).
+    """
+    knobs = {"dynamism": 0.25, "food_growth": 0.2}
+    original = random_policy.measure("scavenging", knobs, seeds=8, steps=5_000)
+    off_agent = random_policy.measure("scavenging", {**knobs, "predator_respawn": "off-agent"}, seeds=8, steps=5_000)
+    assert original.caught.sum() > off_agent.caught.sum()

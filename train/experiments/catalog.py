@@ -36,6 +36,7 @@ from train.experiments.choices import (
     RELEASED_SALAD_SCHEDULES,
     SHAPING_BASE,
     SHAPING_SCHEDULE,
+    SHIPPED_RULES,
     SPARSE_EQUIVALENT,
     TUNED,
 )
@@ -52,8 +53,9 @@ from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
 from train.experiments.released import released_experiments
 
 __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS",
-           "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE", "SHAPING_SCHEDULE", "SMOKE", "SPARSE_EQUIVALENT", "TUNED",
-           "WAYPOINT_TASKS", "Budget", "Condition", "Experiment", "get_experiment", "job_config"]
+           "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SMOKE",
+           "SPARSE_EQUIVALENT", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition", "Experiment", "get_experiment",
+           "job_config"]
 
 # ---- building configs ----------------------------------------------------------------------------------
 
@@ -61,6 +63,8 @@ __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "
 def job_config(experiment: Experiment, task: str, condition: Condition, budget: Budget) -> TrainConfig:
     """The full `TrainConfig` of one condition of one task at ``budget``."""
     flat: dict[str, Any] = {"task": task, **TUNED.get(task, {}), **condition.overrides}
+    if task in SHIPPED_RULES:
+        flat["env_kwargs"] = {**SHIPPED_RULES[task], **flat.get("env_kwargs", {})}
     flat.update(budget.overrides)
     flat.update(budget.task_overrides.get(task, {}))
     steps = budget.steps_for(task)

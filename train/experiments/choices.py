@@ -22,6 +22,9 @@ Every experiment of `train.experiments.catalog` builds on them:
   3e-4, chosen as the paper chose it, by a learning-rate sweep (the released salad script sweeps 1e-5 ... 1e-3;
   every other released script fixes 1e-4). The sweep is the ``settings`` experiment; its evidence is in
   docs/fidelity.md ("Trainer settings").
+* task parameters kept as shipped (`SHIPPED_RULES`): scavenging's predators are reborn off the agent's cell
+  (``predator_respawn="off-agent"``) in every experiment, the rule its shipped runs trained with, though the
+  environment's default is now the original's; so re-running an experiment re-runs what is shipped.
 * evaluation horizon: left to the trainer, which takes each task's test horizon from its test MDP
   (``test_mdp_kwargs()``), whatever the training horizon.
 """
@@ -33,7 +36,7 @@ from types import MappingProxyType
 from train.tasks import TASKS
 
 __all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE",
-           "SHAPING_SCHEDULE", "SPARSE_EQUIVALENT", "TUNED"]
+           "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -61,6 +64,13 @@ TUNED = MappingProxyType({"salad": MappingProxyType({"lr": 3e-4})})
 """Trainer settings every experiment uses for a task instead of `TrainConfig`'s defaults (the original
 code's); a condition's own overrides still win. Salad's learning rate is the best of the settings study's
 sweep (10 seeds x 500 000 steps per rate; docs/fidelity.md)."""
+
+SHIPPED_RULES = MappingProxyType({"scavenging": MappingProxyType({"predator_respawn": "off-agent"})})
+"""Task parameters every experiment sets (under a condition's own ``env_kwargs``) to keep a rule its shipped runs
+trained with where the environment's default has since become the original code's: scavenging's predators reborn
+at once off the agent's cell (the original's, one per step and possibly on the agent, is the default since
+2026-12-06; a random policy is caught on 4 569 steps per 20 000 under the kept rule, 4 882 under the original's,
+docs/fidelity.md)."""
 
 SHAPING_BASE = MappingProxyType({
     "salad": {"dynamism": 0.05}, "walled-salad": {"dynamism": 0.05},

@@ -16,6 +16,10 @@ sentence; its entry was dumped again from its code, its two earlier arms' jobs c
 was appended; both dumped from their code, ``hunting-behaviour``'s earlier jobs checked unchanged first.
 ``salad-shaping-released`` and ``scavenging-released`` were appended (dumped from their code; nothing else changed),
 then ``scavenging-released-fig4`` and ``walls-released`` the same way.
+When ecorl's scavenging took the original code's predator respawn as its default, the 42 scavenging jobs of
+``dynamism``, ``shaping``, ``scavenging-released`` and ``scavenging-released-fig4`` gained ``predator_respawn:
+off-agent`` in their ``env_kwargs`` (`SHIPPED_RULES`, the rule their shipped runs trained with), checked to be the
+only change, and were dumped again.
 """
 
 from __future__ import annotations

@@ -427,7 +427,7 @@ def test_scavenging_released_arms_train_the_released_world_and_differ_in_the_spa
     arms = {c.name: job_config(exp, "scavenging", c, exp.budget("paper")) for c in exp.conditions["scavenging"]}
     plain = arms.pop("no-shaping")
     assert (plain.env.dynamism, plain.env.env_kwargs, plain.env.reset_free, plain.env.reward) == (
-        0.25, {"food_growth": 0.2}, True, "sparse")
+        0.25, {"predator_respawn": "off-agent", "food_growth": 0.2}, True, "sparse")  # off-agent: SHIPPED_RULES
     assert (plain.eval.eval_dynamism, plain.eval.eval_env_kwargs) == (0.25, {"predator_count": 1,
                                                                            "predator_lifespan": 1})
     assert plain.dqn.lr == 1e-4 and plain.env.shaping == "0"
@@ -458,3 +458,18 @@ def test_walls_released_is_walls_with_the_released_network():
         shipped = job_config(paper, "walled-salad", theirs, paper.budget("paper"))
         assert released.dqn.inventory_repeat == 8 and shipped.dqn.inventory_repeat == 1
         assert released == shipped.replace(inventory_repeat=8)
+
+
+def test_every_experiment_keeps_scavenging_predators_reborn_off_the_agent_as_its_shipped_runs_trained():
+    """`SHIPPED_RULES`: the env's default is the original's respawn; the experiments keep the shipped rule, a
+    condition's own env_kwargs beside it, and only on scavenging.
+    """
+    for exp in EXPERIMENTS.values():
+        for task, conditions in exp.conditions.items():
+            for c in conditions:
+                if c.measure:
+                    continue
+                kwargs = job_config(exp, task, c, exp.budget("smoke")).env.env_kwargs
+                assert ("predator_respawn" in kwargs) == (task == "scavenging"), (exp.name, task, c.name)
+                if task == "scavenging":
+                    assert kwargs == {**c.overrides.get("env_kwargs", {}), "predator_respawn": "off-agent"}

@@ -12,6 +12,7 @@ import pytest
 import torch
 
 from train import cli
+from train.config import TrainConfig
 from train.policy import (
     POLICY_DIR,
     export_policy,
@@ -289,3 +290,19 @@ def test_the_test_mdp_is_named_with_the_task_parameters_a_run_set():
     released = load_policy_file(root / "hunting-released-fig4/hunting/dynamic-reset-free-waypoint/policies/best.npz")
     assert released.describe_test_mdp() == "horizon 200, dynamism 0.2"
     assert released.describe_test_mdp(dynamism=0) == "horizon 200, static"
+
+
+def test_shipped_scavenging_runs_name_the_predator_respawn_they_trained_with():
+    """They trained before the original's respawn became the default (docs/fidelity.md): config and policies say
+    ``off-agent``, so re-evaluating them uses their rule and resuming one under the new default is refused.
+    """
+    root = Path(__file__).resolve().parents[3] / "docs/results"
+    runs = [p.parent for p in sorted(root.rglob("config.json"))
+            if TrainConfig.from_dict(json.loads(p.read_text())).env.task == "scavenging"]
+    assert len(runs) >= 14
+    for run in runs:
+        cfg = TrainConfig.from_dict(json.loads((run / "config.json").read_text()))
+        assert cfg.env.env_kwargs["predator_respawn"] == "off-agent", run
+        for path in (run / "policies").glob("*.npz"):
+            policy = load_policy_file(path)
+            assert policy.test_kwargs["predator_respawn"] == "off-agent", path
