@@ -180,7 +180,7 @@ the phases and world lifecycle defined here."""
 @nb.njit(cache=True)
 def reset_world(w, r, obs) -> None:
     """Start a new episode: the fixed layout, the initial objects anywhere, then the agent on a random
-    empty cell, then the predators. The RNG stream and the lifetime clock carry on.
+    empty cell, then the predators (`respawn_predator`'s cells). The RNG stream and the lifetime clock carry on.
     """
     n = r.n
     w.grid[:, :] = r.layout
@@ -211,7 +211,7 @@ def reset_world(w, r, obs) -> None:
                     w.start[0], w.start[1] = x, y
                 k -= 1
     for i in range(r.num_predators):
-        respawn_predator(w, r, i)
+        respawn_predator(w, r, i, True)
     observe(w, r, obs)
 
 

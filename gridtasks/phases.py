@@ -122,17 +122,17 @@ def move_creatures(w, r, s: float) -> None:
 
 
 @nb.njit(cache=True)
-def respawn_predator(w, r, i: int) -> None:
+def respawn_predator(w, r, i: int, at_reset: bool = False) -> None:
     """Put predator i, newborn, on a uniformly chosen interior cell: under the original rule one holding no
-    object, other than the agent's start cell (so possibly the agent's own); under ``off-agent`` any non-wall
-    cell other than the agent's.
+    object, other than the agent's start cell (so possibly the agent's own; at a reset any, as the original places
+    its monsters before the agent); under ``off-agent`` any non-wall cell other than the agent's.
     """
     n = r.n
     original = r.predator_respawn == RESPAWN_ORIGINAL
     while True:
         x, y = 1 + randint(w, n - 2), 1 + randint(w, n - 2)
         if original:
-            if w.grid[y, x] == _EMPTY and not (x == w.start[0] and y == w.start[1]):
+            if w.grid[y, x] == _EMPTY and (at_reset or not (x == w.start[0] and y == w.start[1])):
                 break
         elif PASSABLE[w.grid[y, x]] and not (x == w.agent[0] and y == w.agent[1]):
             break

@@ -83,7 +83,8 @@ class ScavengingEnv(GridTaskEnv):
     ``predator_lifespan`` steps it dies; one dead predator per step is reborn, after the food grew, on a random
     cell holding no object other than the agent's start cell, so possibly on the agent, whom it catches at
     once (the original's rule; ``predator_respawn="off-agent"``: reborn at once, never on the agent's cell).
-    A dead predator waiting for its turn is neither seen nor felt. Food is replenished
+    A dead predator waiting for its turn is neither seen nor felt. At a reset the predators take object-free
+    cells, the agent's included (the original places them before the agent). Food is replenished
     to ``food_count`` on the grid, one per step (it may appear under the agent, as in the original);
     ``food_growth`` p > 0 also grows one more with probability p per step and makes food wither, as salad's
     ingredients do (the released Fig. 5 script's world).

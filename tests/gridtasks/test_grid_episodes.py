@@ -141,8 +141,22 @@ def test_factory_reset_puts_the_depot_at_1_1_and_one_worker_of_each_kind():
         assert np.count_nonzero(grid == Code.METAL_WORKER) == np.count_nonzero(grid == Code.WOOD_WORKER) == 1
 
 
-def test_scavenging_reset_never_puts_a_predator_on_the_agent():
+def test_scavenging_reset_puts_predators_on_object_free_cells_the_agents_as_the_original_does():
+    """The original places its monsters before the agent, so one may start on the agent's cell."""
     env = gridtasks.ScavengingEnv(predator_count=4)
+    on_agent = 0
+    for seed in range(100):
+        env.reset(seed=seed)
+        w = env.unwrapped.world
+        for i in range(4):
+            x, y = w["pred"][i]
+            assert w["grid"][y, x] == Code.EMPTY and w["pred_age"][i] == 0
+            on_agent += tuple(w["pred"][i]) == tuple(w["agent"])
+    assert 0 < on_agent < 20  # about 400 / 62
+
+
+def test_scavenging_reset_never_puts_a_predator_on_the_agent_off_agent():
+    env = gridtasks.ScavengingEnv(predator_count=4, predator_respawn="off-agent")
     for seed in range(30):
         env.reset(seed=seed)
         w = env.unwrapped.world
