@@ -496,3 +496,18 @@ def test_interact_follows_a_worker_that_moved():
     assert world["inventory"] == Code.METAL
     assert world["grid"][3, 3] == Code.EMPTY
     assert np.count_nonzero(world["grid"] == Code.METAL_WORKER) == 1
+
+
+def test_a_dead_predator_is_not_drawn():
+    from gridtasks.render import render_world
+
+    env = scavenging(predator_count=2, predator_lifespan=3)
+    world = world_from_map(env, EMPTY7, agent=(5, 5), predators=[(1, 1), (3, 3)])
+    rules = env.unwrapped.rules[0]
+    both = render_world(world, rules)
+    world["pred_age"][1] = 3  # the second one dead, waiting to be reborn
+    one = render_world(world, rules)
+    world["pred"][1] = (1, 5)  # where a dead one waits does not matter
+    np.testing.assert_array_equal(render_world(world, rules), one)
+    world["pred_age"][1] = 0
+    assert not np.array_equal(render_world(world, rules), one) and not np.array_equal(one, both)
