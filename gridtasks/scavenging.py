@@ -23,7 +23,7 @@ class ScavengingConfig(SpawnRules):
     predator_count: int = 2
     """Predators alive at any time."""
     predator_lifespan: int = 10
-    """Steps a predator lives before it reappears at a random cell."""
+    """Steps a predator lives before it dies (and comes back as ``predator_respawn`` says)."""
     predator_respawn: str = "original"
     """Where and when a dead predator comes back. ``original`` (default, the original code's replenishment):
     one per step, after the food grew, on a random cell holding no object other than the agent's start cell,
