@@ -47,6 +47,7 @@ from train.experiments.conditions import (
     quick,
     shaping_conditions,
     sweep_conditions,
+    walls_conditions,
     with_reward,
 )
 from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
@@ -319,8 +320,7 @@ def _task_experiments() -> list[Experiment]:
             "walls", "Fig. 8-10", "Shaping methods in the walled salad maze",
             "Walled salad (10x10, three walls): environment vs reward shaping, episodic and non-episodic, "
             "with visitation heat-maps.",
-            {"walled-salad": shaping_conditions("walled-salad", True, "-reset-free")
-             + shaping_conditions("walled-salad", False, "-episodic")},
+            {"walled-salad": walls_conditions()},
             {"walled-salad": 1_000_000}, 10, {"smoke": SMOKE, "quick": quick(3, 100_000)}, heatmaps=True,
             panel_per_setting=True),
         Experiment(

@@ -11,7 +11,7 @@ from train.experiments.choices import DYNAMIC_P, SHAPING_BASE, SHAPING_SCHEDULE,
 from train.experiments.experiment import Budget, Condition
 
 __all__ = ["FLAT_LADDER", "SMOKE", "dynamism_conditions", "quick", "shaping_conditions", "sweep_conditions",
-           "with_reward"]
+           "walls_conditions", "with_reward"]
 
 FLAT_LADDER = {"reward_ladder": "flat"}
 """Factory's +1-per-stage, +100-per-delivery rewards: what its subgoal-mode arms trained with before the released
@@ -72,6 +72,12 @@ def shaping_conditions(task: str, reset_free: bool = True, suffix: str = "") -> 
     mode = ", non-episodic" if reset_free else ", episodic"
     return tuple(Condition(name + suffix, label + (mode if suffix else ""), {**base, **knobs})
                  for name, label, knobs in table)
+
+
+def walls_conditions() -> tuple[Condition, ...]:
+    """The walled salad's shaping arms, non-episodic then episodic (Figs. 8-10)."""
+    return (shaping_conditions("walled-salad", True, "-reset-free")
+            + shaping_conditions("walled-salad", False, "-episodic"))
 
 
 def sweep_conditions(task: str, levels: tuple[float, ...]) -> tuple[Condition, ...]:

@@ -43,7 +43,14 @@ not the released one (one per step, possibly on the agent), ecorl's default sinc
 from __future__ import annotations
 
 from train.experiments.choices import DYNAMIC_P, SHAPING_SCHEDULE
-from train.experiments.conditions import SMOKE, dynamism_conditions, quick, shaping_conditions, with_reward
+from train.experiments.conditions import (
+    SMOKE,
+    dynamism_conditions,
+    quick,
+    shaping_conditions,
+    walls_conditions,
+    with_reward,
+)
 from train.experiments.experiment import Condition, Experiment
 
 __all__ = ["RELEASED_DEER_WINDOWS", "released_experiments"]
@@ -287,10 +294,8 @@ def _scavenging_released_fig4() -> Experiment:
 
 def _walls_released() -> Experiment:
     """Figs. 8-10 as the released wall script trained them: 'walls' with the released network's input."""
-    conditions = (shaping_conditions("walled-salad", True, "-reset-free")
-                  + shaping_conditions("walled-salad", False, "-episodic"))
     arms = tuple(Condition(c.name, f"{c.label}, inventory read 8 times", {**c.overrides, **RELEASED_NETWORK})
-                 for c in conditions)
+                 for c in walls_conditions())
     return Experiment(
         "walls-released", "Figs. 8-10, as released", "Shaping in the walled salad as released",
         "The walled salad (10x10, three fixed walls, ingredients growing at p 0.05, lr 1e-4, the window full at "
