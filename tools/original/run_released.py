@@ -41,6 +41,7 @@ SCRIPTS = {
     "hunting-fig4": "experiments/continual/dynamic_static/deer/tool_dqn.py",
     "factory-fig4": "experiments/continual/dynamic_static/factory/dqn.py",
     "scavenging-shaping": "experiments/continual/env_shaping/monster/dqn.py",
+    "hunting-shaping": "experiments/continual/env_shaping/distance_increasing/deer/tool_dqn.py",
 }
 """Named released scripts; any other script path inside the checkout also works."""
 NUM_ACTIONS = 7
