@@ -1,0 +1,115 @@
+r"""Each seed of the released code's runs of one condition as a table row, and, beside them, an ecorl run's seeds.
+
+A row: the success at the last validation and the best one, how many validations reached 10 %, where the largest |Q|
+of a validation first passed 10^3, that |Q| and the greedy top-action share at the last validation, how many
+validations found the greedy policy collapsed (one action above ecorl's 60 % of the steps), the task
+completions per 5 000 training steps early and late, and whether the seed learned (above 20 % at the end, ecorl's
+rule). A released run counts completions in ``metrics.csv``'s ``train_solves``; an ecorl run has only its training
+reward, so ``--solve-reward`` (a sparse reward's pay per completion, 100 on the grid tasks) turns that into
+completions, and without it that column is left out::
+
+    python tools/original/seed_table.py docs/results/original/hunting-shaping/env-shaping-sparse-260k \
+        --ecorl docs/results/paper/hunting-released/hunting/env-shaping-sparse-260k --solve-reward 100
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from compare import ecorl_seeds, released_seeds
+
+from train.experiments.report.stats import COLLAPSE_SHARE, LEARNED
+
+EARLY = 50_000
+"""Training steps of the early window (from the start)."""
+LATE = 500_000
+"""Training steps of the late window (up to the last validation)."""
+PER = 5_000
+"""Completions are counted per this many training steps."""
+
+
+def spaced(number: float) -> str:
+    """A whole number with thin groups: 1 240 700."""
+    return f"{number:,.0f}".replace(",", " ")
+
+
+COMPLETIONS = f"completions per {spaced(PER)} training steps, first {spaced(EARLY)} → last {spaced(LATE)}"
+"""The header of the completions column."""
+HEADER = ("| seed | last validation at | success there | best validation | validations at or above 10 % | "
+          "largest \\|Q\\| first above 10³ at | largest \\|Q\\| at the last validation | top-action share there | "
+          "validations collapsed (top action above 60 %) | "
+          f"{COMPLETIONS} | learned (above 20 %) |")
+"""The table's header row."""
+
+
+def rate(windows: list[tuple[float, float, float]], low: float, high: float) -> float:
+    """Completions per `PER` steps over the windows (start, end, count) that lie inside (low, high]."""
+    inside = [(start, end, count) for start, end, count in windows if start >= low and end <= high]
+    steps = sum(end - start for start, end, _ in inside)
+    return sum(count for _, _, count in inside) / steps * PER if steps else math.nan
+
+
+def released_windows(rows: list[dict[str, float]]) -> list[tuple[float, float, float]]:
+    """(start, end, completions) between consecutive validations of a released run (its first from step 0)."""
+    ends = [row["step"] for row in rows]
+    return [(start, end, row["train_solves"]) for start, end, row in zip([0.0, *ends], ends, rows)]
+
+
+def ecorl_windows(rows: list[dict[str, float]], solve_reward: float) -> list[tuple[float, float, float]]:
+    """(start, end, completions) between consecutive evaluations of an ecorl seed: its training reward over
+    ``solve_reward``.
+    """
+    ends = [row["step"] for row in rows]
+    return [(start, end, row["train_reward"] / solve_reward) for start, end, row in zip([0.0, *ends], ends, rows)]
+
+
+def row(name: str, rows: list[dict[str, float]], windows: list[tuple[float, float, float]] | None) -> str:
+    """One seed's table row."""
+    last = rows[-1]
+    best = max(rows, key=lambda r: r["success"])
+    blown = next((r["step"] for r in rows if r["max_q"] > 1e3), None)
+    best_cell = f"{best['success']:.0%} at {spaced(best['step'])}" if best["success"] else "0% throughout"
+    cells = [name, spaced(last["step"]), f"{last['success']:.0%}", best_cell,
+             f"{sum(r['success'] >= 0.1 for r in rows)} of {len(rows)}",
+             spaced(blown) if blown else f"never ({max(r['max_q'] for r in rows):.3g} at most)",
+             f"{last['max_q']:.3g}", f"{last.get('top_action_share', math.nan):.0%}",
+             f"{sum(r.get('top_action_share', math.nan) > COLLAPSE_SHARE for r in rows)} of {len(rows)}"]
+    if windows is not None:
+        early, late = rate(windows, 0, EARLY + 2_500), rate(windows, last["step"] - LATE - 2_500, last["step"])
+        cells.append(f"{early:.2g} → {late:.2g}")
+    cells.append("yes" if last["success"] > LEARNED else "no")
+    return "| " + " | ".join(cells) + " |"
+
+
+def table(seeds: dict[str, list[dict[str, float]]], windows: dict[str, list] | None) -> list[str]:
+    """The header and a row per seed (``windows``: per seed, or None to leave the completions column out)."""
+    header = HEADER if windows is not None else HEADER.replace(f" {COMPLETIONS} |", "")
+    lines = [header, "|" + "---|" * (header.count(" | ") + 1)]
+    return lines + [row(name, rows, windows[name] if windows is not None else None) for name, rows in seeds.items()]
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the released seeds' table and, with ``--ecorl``, the ecorl run's."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("released", type=Path, help="a folder of released runs, seed<N>/metrics.csv")
+    parser.add_argument("--ecorl", type=Path, help="an ecorl run directory of the same condition")
+    parser.add_argument("--solve-reward", type=float, default=None,
+                        help="the ecorl run's reward per completion (a sparse reward: 100), to count its completions")
+    args = parser.parse_args(argv)
+    released = released_seeds(args.released)
+    if not released:
+        raise SystemExit(f"no seed*/metrics.csv in {args.released}")
+    print(f"released ({args.released})\n")
+    print("\n".join(table(released, {name: released_windows(rows) for name, rows in released.items()})))
+    if args.ecorl:
+        ecorl = ecorl_seeds(args.ecorl)
+        windows = ({name: ecorl_windows(rows, args.solve_reward) for name, rows in ecorl.items()}
+                   if args.solve_reward else None)
+        print(f"\necorl ({args.ecorl})\n")
+        print("\n".join(table(ecorl, windows)))
+
+
+if __name__ == "__main__":
+    main()
