@@ -2,11 +2,11 @@ r"""Each seed of the released code's runs of one condition as a table row, and, 
 
 A row: the success at the last validation and the best one, how many validations reached 10 %, where the largest |Q|
 of a validation first passed 10^3, that |Q| and the greedy top-action share at the last validation, how many
-validations found the greedy policy collapsed (one action above ecorl's 60 % of the steps), the task
-completions per 5 000 training steps early and late, and whether the seed learned (above 20 % at the end, ecorl's
-rule). A released run counts completions in ``metrics.csv``'s ``train_solves``; an ecorl run has only its training
-reward, so ``--solve-reward`` (a sparse reward's pay per completion, 100 on the grid tasks) turns that into
-completions, and without it that column is left out::
+validations found the greedy policy collapsed (one action above ecorl's 60 % of the steps), the task completions per
+5 000 training steps early and late, and whether the seed learned (above 20 % at the end, ecorl's rule); under each
+table one line sums its seeds up. A released run counts completions in ``metrics.csv``'s ``train_solves``; an ecorl
+run has only its training reward, so ``--solve-reward`` (a sparse reward's pay per completion, 100 on the grid
+tasks) turns that into completions, and without it that column is left out::
 
     python tools/original/seed_table.py docs/results/original/hunting-shaping/env-shaping-sparse-260k \
         --ecorl docs/results/paper/hunting-released/hunting/env-shaping-sparse-260k --solve-reward 100
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import statistics
 from pathlib import Path
 
 from compare import ecorl_seeds, released_seeds
@@ -90,6 +91,20 @@ def table(seeds: dict[str, list[dict[str, float]]], windows: dict[str, list] | N
     return lines + [row(name, rows, windows[name] if windows is not None else None) for name, rows in seeds.items()]
 
 
+def summary(seeds: dict[str, list[dict[str, float]]]) -> str:
+    """One line over the seeds: collapsed at the last validation, the share of all validations collapsed (the
+    seeds' range), seeds whose largest |Q| passed 10³ at some validation, seeds learned.
+    """
+    shares = [sum(r.get("top_action_share", math.nan) > COLLAPSE_SHARE for r in rows) / len(rows)
+              for rows in seeds.values()]
+    last = [rows[-1] for rows in seeds.values()]
+    return (f"{len(seeds)} seeds: {sum(r.get('top_action_share', math.nan) > COLLAPSE_SHARE for r in last)} "
+            f"collapsed at the last validation; {statistics.mean(shares):.0%} of the validations collapsed "
+            f"(a seed: {min(shares):.0%}–{max(shares):.0%}); largest \\|Q\\| above 10³ at some validation in "
+            f"{sum(any(r['max_q'] > 1e3 for r in rows) for rows in seeds.values())}; "
+            f"{sum(r['success'] > LEARNED for r in last)} learned")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Print the released seeds' table and, with ``--ecorl``, the ecorl run's."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -103,12 +118,14 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(f"no seed*/metrics.csv in {args.released}")
     print(f"released ({args.released})\n")
     print("\n".join(table(released, {name: released_windows(rows) for name, rows in released.items()})))
+    print(f"\n{summary(released)}")
     if args.ecorl:
         ecorl = ecorl_seeds(args.ecorl)
         windows = ({name: ecorl_windows(rows, args.solve_reward) for name, rows in ecorl.items()}
                    if args.solve_reward else None)
         print(f"\necorl ({args.ecorl})\n")
         print("\n".join(table(ecorl, windows)))
+        print(f"\n{summary(ecorl)}")
 
 
 if __name__ == "__main__":
