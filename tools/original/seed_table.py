@@ -36,11 +36,16 @@ def spaced(number: float) -> str:
     return f"{number:,.0f}".replace(",", " ")
 
 
+def percent(share: float) -> str:
+    """A share as a whole percentage; a dash for one not recorded (NaN)."""
+    return f"{share:.0%}" if math.isfinite(share) else "—"
+
+
 COMPLETIONS = f"completions per {spaced(PER)} training steps, first {spaced(EARLY)} → last {spaced(LATE)}"
 """The header of the completions column."""
 HEADER = ("| seed | last validation at | success there | best validation | validations at or above 10 % | "
           "largest \\|Q\\| first above 10³ at | largest \\|Q\\| at the last validation | top-action share there | "
-          "validations collapsed (top action above 60 %) | "
+          "share of the validations collapsed (top action above 60 %) | "
           f"{COMPLETIONS} | learned (above 20 %) |")
 """The table's header row."""
 
@@ -66,6 +71,12 @@ def ecorl_windows(rows: list[dict[str, float]], solve_reward: float) -> list[tup
     return [(start, end, row["train_reward"] / solve_reward) for start, end, row in zip([0.0, *ends], ends, rows)]
 
 
+def collapsed_share(rows: list[dict[str, float]]) -> float:
+    """The share of a seed's validations with the greedy policy collapsed; NaN for a run that did not record it."""
+    shares = [r["top_action_share"] for r in rows if math.isfinite(r.get("top_action_share", math.nan))]
+    return sum(share > COLLAPSE_SHARE for share in shares) / len(rows) if len(shares) == len(rows) else math.nan
+
+
 def row(name: str, rows: list[dict[str, float]], windows: list[tuple[float, float, float]] | None) -> str:
     """One seed's table row."""
     last = rows[-1]
@@ -74,9 +85,8 @@ def row(name: str, rows: list[dict[str, float]], windows: list[tuple[float, floa
     best_cell = f"{best['success']:.0%} at {spaced(best['step'])}" if best["success"] else "0% throughout"
     cells = [name, spaced(last["step"]), f"{last['success']:.0%}", best_cell,
              f"{sum(r['success'] >= 0.1 for r in rows)} of {len(rows)}",
-             spaced(blown) if blown else f"never ({max(r['max_q'] for r in rows):.3g} at most)",
-             f"{last['max_q']:.3g}", f"{last.get('top_action_share', math.nan):.0%}",
-             f"{sum(r.get('top_action_share', math.nan) > COLLAPSE_SHARE for r in rows)} of {len(rows)}"]
+             spaced(blown) if blown is not None else f"never ({max(r['max_q'] for r in rows):.3g} at most)",
+             f"{last['max_q']:.3g}", percent(last.get("top_action_share", math.nan)), percent(collapsed_share(rows))]
     if windows is not None:
         early, late = rate(windows, 0, EARLY + 2_500), rate(windows, last["step"] - LATE - 2_500, last["step"])
         cells.append(f"{early:.2g} → {late:.2g}")
@@ -95,12 +105,12 @@ def summary(seeds: dict[str, list[dict[str, float]]]) -> str:
     """One line over the seeds: collapsed at the last validation, the share of all validations collapsed (the
     seeds' range), seeds whose largest |Q| passed 10³ at some validation, seeds learned.
     """
-    shares = [sum(r.get("top_action_share", math.nan) > COLLAPSE_SHARE for r in rows) / len(rows)
-              for rows in seeds.values()]
+    shares = [collapsed_share(rows) for rows in seeds.values()]
     last = [rows[-1] for rows in seeds.values()]
-    return (f"{len(seeds)} seeds: {sum(r.get('top_action_share', math.nan) > COLLAPSE_SHARE for r in last)} "
-            f"collapsed at the last validation; {statistics.mean(shares):.0%} of the validations collapsed "
-            f"(a seed: {min(shares):.0%}–{max(shares):.0%}); largest \\|Q\\| above 10³ at some validation in "
+    collapse = (f"{sum(r['top_action_share'] > COLLAPSE_SHARE for r in last)} collapsed at the last validation; "
+                f"{statistics.mean(shares):.0%} of the validations collapsed (a seed: {min(shares):.0%}–"
+                f"{max(shares):.0%})" if all(map(math.isfinite, shares)) else "collapse not recorded")
+    return (f"{len(seeds)} seeds: {collapse}; largest \\|Q\\| above 10³ at some validation in "
             f"{sum(any(r['max_q'] > 1e3 for r in rows) for rows in seeds.values())}; "
             f"{sum(r['success'] > LEARNED for r in last)} learned")
 
