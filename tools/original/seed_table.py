@@ -17,11 +17,12 @@ from __future__ import annotations
 import argparse
 import math
 import statistics
+from collections.abc import Callable
 from pathlib import Path
 
-from compare import ecorl_seeds, released_seeds
+from compare import BLOWN, ecorl_seeds, released_seeds
 
-from train.experiments.report.stats import COLLAPSE_SHARE, LEARNED
+from train.experiments.report.stats import LEARNED, collapsed
 
 EARLY = 50_000
 """Training steps of the early window (from the start)."""
@@ -57,31 +58,26 @@ def rate(windows: list[tuple[float, float, float]], low: float, high: float) -> 
     return sum(count for _, _, count in inside) / steps * PER if steps else math.nan
 
 
-def released_windows(rows: list[dict[str, float]]) -> list[tuple[float, float, float]]:
-    """(start, end, completions) between consecutive validations of a released run (its first from step 0)."""
-    ends = [row["step"] for row in rows]
-    return [(start, end, row["train_solves"]) for start, end, row in zip([0.0, *ends], ends, rows)]
-
-
-def ecorl_windows(rows: list[dict[str, float]], solve_reward: float) -> list[tuple[float, float, float]]:
-    """(start, end, completions) between consecutive evaluations of an ecorl seed: its training reward over
-    ``solve_reward``.
+def training_windows(rows: list[dict[str, float]],
+                     count: Callable[[dict[str, float]], float]) -> list[tuple[float, float, float]]:
+    """(start, end, completions) between consecutive validations (the first from step 0), ``count`` reading a row's
+    completions since the one before: a released run's ``train_solves``, an ecorl run's reward over a completion's.
     """
     ends = [row["step"] for row in rows]
-    return [(start, end, row["train_reward"] / solve_reward) for start, end, row in zip([0.0, *ends], ends, rows)]
+    return [(start, end, count(row)) for start, end, row in zip([0.0, *ends], ends, rows)]
 
 
 def collapsed_share(rows: list[dict[str, float]]) -> float:
     """The share of a seed's validations with the greedy policy collapsed; NaN for a run that did not record it."""
-    shares = [r["top_action_share"] for r in rows if math.isfinite(r.get("top_action_share", math.nan))]
-    return sum(share > COLLAPSE_SHARE for share in shares) / len(rows) if len(shares) == len(rows) else math.nan
+    shares = [r.get("top_action_share", math.nan) for r in rows]
+    return float(collapsed(shares).mean()) if all(map(math.isfinite, shares)) else math.nan
 
 
 def row(name: str, rows: list[dict[str, float]], windows: list[tuple[float, float, float]] | None) -> str:
     """One seed's table row."""
     last = rows[-1]
     best = max(rows, key=lambda r: r["success"])
-    blown = next((r["step"] for r in rows if r["max_q"] > 1e3), None)
+    blown = next((r["step"] for r in rows if r["max_q"] > BLOWN), None)
     best_cell = f"{best['success']:.0%} at {spaced(best['step'])}" if best["success"] else "0% throughout"
     cells = [name, spaced(last["step"]), f"{last['success']:.0%}", best_cell,
              f"{sum(r['success'] >= 0.1 for r in rows)} of {len(rows)}",
@@ -107,11 +103,11 @@ def summary(seeds: dict[str, list[dict[str, float]]]) -> str:
     """
     shares = [collapsed_share(rows) for rows in seeds.values()]
     last = [rows[-1] for rows in seeds.values()]
-    collapse = (f"{sum(r['top_action_share'] > COLLAPSE_SHARE for r in last)} collapsed at the last validation; "
+    collapse = (f"{int(collapsed([r['top_action_share'] for r in last]).sum())} collapsed at the last validation; "
                 f"{statistics.mean(shares):.0%} of the validations collapsed (a seed: {min(shares):.0%}–"
                 f"{max(shares):.0%})" if all(map(math.isfinite, shares)) else "collapse not recorded")
     return (f"{len(seeds)} seeds: {collapse}; largest \\|Q\\| above 10³ at some validation in "
-            f"{sum(any(r['max_q'] > 1e3 for r in rows) for rows in seeds.values())}; "
+            f"{sum(any(r['max_q'] > BLOWN for r in rows) for rows in seeds.values())}; "
             f"{sum(r['success'] > LEARNED for r in last)} learned")
 
 
@@ -127,12 +123,13 @@ def main(argv: list[str] | None = None) -> None:
     if not released:
         raise SystemExit(f"no seed*/metrics.csv in {args.released}")
     print(f"released ({args.released})\n")
-    print("\n".join(table(released, {name: released_windows(rows) for name, rows in released.items()})))
+    solves = {name: training_windows(rows, lambda r: r["train_solves"]) for name, rows in released.items()}
+    print("\n".join(table(released, solves)))
     print(f"\n{summary(released)}")
     if args.ecorl:
         ecorl = ecorl_seeds(args.ecorl)
-        windows = ({name: ecorl_windows(rows, args.solve_reward) for name, rows in ecorl.items()}
-                   if args.solve_reward else None)
+        windows = ({name: training_windows(rows, lambda r: r["train_reward"] / args.solve_reward)
+                    for name, rows in ecorl.items()} if args.solve_reward else None)
         print(f"\necorl ({args.ecorl})\n")
         print("\n".join(table(ecorl, windows)))
         print(f"\n{summary(ecorl)}")
