@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench_gpu import BASE as GPU_BASE  # noqa: E402 (this script's folder is on the path)
 
-from train.trainer import Trainer  # noqa: E402
+from train.loop.trainer import Trainer  # noqa: E402
 
 BASE = GPU_BASE.replace(reward="waypoint")
 """bench_gpu's salad trainer with the headline panel's reward."""

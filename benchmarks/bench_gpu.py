@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from train.agent.dqn import FlatAdam  # noqa: E402
 from train.config import TrainConfig  # noqa: E402
-from train.trainer import Trainer  # noqa: E402
+from train.loop.trainer import Trainer  # noqa: E402
 
 BASE = TrainConfig().replace(task="salad", dynamism=0.1, reset_free=True, lr=3e-4, warmup_steps=500,
                              buffer_size=50_000, eval_every=500_000, progress=False, threads=1)

@@ -7,7 +7,7 @@ packed per task, timed for a few epochs and projected.
 
 The census: what ``ecorl run --all --budget paper`` trains, every condition of every named experiment, each
 distinct configuration once (copies such as a sweep's p 0 and the headline's static run are the same config),
-grouped into the packs one process can train (`train.packing.group_packable`: conditions of a task that differ
+grouped into the packs one process can train (`train.loop.packing.group_packable`: conditions of a task that differ
 only in per-row settings). For each pack the benchmark builds the packed trainer (with a 20 000-slot replay, so
 any K fits; replay size does not change the work per step), trains ``--epochs`` epochs after an untimed one and
 times one evaluation at the paper's protocol. Its projection: epochs x epoch time + evaluations x evaluation
@@ -33,8 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from train.config import TrainConfig  # noqa: E402
 from train.experiments.catalog import EXPERIMENTS  # noqa: E402
 from train.experiments.multi import plan_many, split_copies  # noqa: E402
-from train.packing import group_packable  # noqa: E402
-from train.trainer import Trainer  # noqa: E402
+from train.loop.packing import group_packable  # noqa: E402
+from train.loop.trainer import Trainer  # noqa: E402
 
 BENCH_REPLAY = 20_000
 """Replay slots per seed while timing (the paper's 500 000 x K hundreds would not fit a host's memory)."""

@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from train.agent.replay import STARTS  # noqa: E402
 from train.config import TrainConfig  # noqa: E402
-from train.trainer import Trainer  # noqa: E402
+from train.loop.trainer import Trainer  # noqa: E402
 
 ENV_KWARGS = {"dynamism": 0.1, "reset_free": False, "horizon": 200}
 EPSILON = 0.1

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from train.policy import load_policy
+from train.storage.policy import load_policy
 from train.tasks import completions, get_task, make_vector_env, probe, step_worlds
 
 WORLDS = 64

@@ -15,8 +15,8 @@ import time
 import numba
 
 from train.config import TrainConfig
+from train.loop.trainer import Trainer
 from train.tasks import TASKS
-from train.trainer import Trainer
 
 WARMUP = TrainConfig().replace(seeds=2, steps=100, epoch_steps=50, updates_per_epoch=5, warmup_steps=20, batch_size=512,
                                eval_rollouts=2, eval_horizon=10, progress=False)

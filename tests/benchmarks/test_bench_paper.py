@@ -6,7 +6,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
-from train.packing import check_packable
+from train.loop.packing import check_packable
 
 SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_paper.py"
 

@@ -70,13 +70,13 @@ def test_env_packages_depend_on_ecology_only(package, allowed):
 def test_importing_the_agent_loads_nothing_of_the_pipeline():
     script = ("import sys, train.agent.dqn, train.agent.replay, train.agent.rnd\n"
               "print(' '.join(m for m in sys.modules if m.startswith(('train.experiments', 'train.cli', "
-              "'train.trainer'))))")
+              "'train.loop.trainer'))))")
     out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
 
 
 def test_importing_the_trainer_loads_nothing_of_the_pipeline():
-    script = ("import sys, train.trainer, train.policy\n"
+    script = ("import sys, train.loop.trainer, train.storage.policy\n"
               "print(' '.join(m for m in sys.modules if m.startswith(('train.experiments', 'train.cli'))))")
     out = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""

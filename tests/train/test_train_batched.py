@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from train.config import TrainConfig
+from train.loop.trainer import Trainer
 from train.tasks import get_task, make_vector_env, step_worlds
-from train.trainer import Trainer
 
 TINY = dict(task="salad", dynamism=0.1, eps_start=0.3, warmup_steps=200, epoch_steps=100, updates_per_epoch=30,
             buffer_size=2_000, eval_rollouts=4, eval_horizon=20, progress=False)

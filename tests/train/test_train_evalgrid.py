@@ -10,7 +10,7 @@ import pytest
 from ecology import validation_seeds
 from gridtasks.codes import Code
 from train.evaluation.grid import SPLITS, evaluate_grid, fresh_seeds, needed_in_first_view, wilson
-from train.policy import load_policy, shipped_policy
+from train.storage.policy import load_policy, shipped_policy
 from train.tasks import get_task, make_vector_env
 
 
@@ -70,16 +70,16 @@ def test_grid_of_a_task_without_a_first_view_need_is_not_split(cli):
 
 
 def test_the_grid_can_evaluate_in_a_dynamic_test_mdp(monkeypatch, cli):
-    import train.policy
+    import train.storage.policy
 
     made = []
 
-    class Spy(train.policy.Evaluator):
+    class Spy(train.storage.policy.Evaluator):
         def __init__(self, env_id, kwargs, *args, **kw):
             made.append(kwargs["dynamism"])
             super().__init__(env_id, kwargs, *args, **kw)
 
-    monkeypatch.setattr(train.policy, "Evaluator", Spy)
+    monkeypatch.setattr(train.storage.policy, "Evaluator", Spy)
     policy = load_policy(shipped_policy("hunting"))
     evaluate_grid(policy, [0.1], [5], validation=2, dynamism=0.2)
     evaluate_grid(policy, [0.1], [5], validation=2)

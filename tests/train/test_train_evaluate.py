@@ -69,7 +69,7 @@ def test_steps_to_solve_count_the_steps_a_greedy_rollout_takes():
     import numpy as np
 
     from ecology import validation_seeds
-    from train.policy import load_policy, shipped_policy
+    from train.storage.policy import load_policy, shipped_policy
 
     policy = load_policy(shipped_policy("salad"))
     result = policy.evaluate(rollouts=12, epsilon=0.0)
@@ -101,7 +101,7 @@ def test_greedy_actions_are_counted_per_agent_over_the_live_steps():
 
 def test_the_evaluation_protocol_can_move_the_test_mdp_as_the_released_validation_did():
     from train.evaluation.protocol import evaluation_kwargs
-    from train.trainer import Trainer
+    from train.loop.trainer import Trainer
 
     test = {"dynamism": 0.0, "horizon": 200, "deer_count": 2, "replenish": False}
     assert evaluation_kwargs(test, None) == test  # the paper's protocol: the test MDP as it is

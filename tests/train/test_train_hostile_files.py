@@ -349,7 +349,7 @@ def test_report_reads_no_fifo_or_link(finished, tmp_path, capsys, name):
 def test_sizes_a_file_sets_are_capped_before_use(tmp_path, capsys):
     """A policy header or a checkpoint's config asking for an endless evaluation, or a million threads, is refused."""
     from train import cli
-    from train.policy import load_policy_file
+    from train.storage.policy import load_policy_file
 
     policy = load_policy_file(sorted((REPO / "train" / "data" / "policies").glob("*.npz"))[0])
     header = {"format": 1, "config": policy.cfg.to_dict(), "seed": policy.seed, "meta": {}}
@@ -394,7 +394,7 @@ def test_no_write_follows_a_link_inside_the_tree_it_was_handed(tmp_path):
 def test_four_inputs_that_raised_tracebacks_are_one_line_answers(tmp_path, capsys, monkeypatch):
     from train import cli
     from train.experiments.report.runs import ReportError, read_columns
-    from train.policy import Policy
+    from train.storage.policy import Policy
     from train.storage.rundir import read_visits
     from train.storage.safeio import UnsafeFileError
 

@@ -16,9 +16,9 @@ import pytest
 from run_metrics import metrics_without_timing
 
 from train.cli import main
-from train.policy import load_policy_file
 from train.storage.checkpoint import CHECKPOINT_NAME, read_checkpoint
 from train.storage.fileio import is_temporary
+from train.storage.policy import load_policy_file
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -116,7 +116,7 @@ def test_a_first_signal_says_the_run_stops_at_its_epoch_end(capfd):
     import os
     import time
 
-    from train.runlog import FIRST_SIGNAL_NOTE, stop_on_signal
+    from train.loop.runlog import FIRST_SIGNAL_NOTE, stop_on_signal
 
     for announce in (True, False):
         with stop_on_signal(announce=announce) as stop:

@@ -12,7 +12,7 @@ import pytest
 
 from train.config import TrainConfig
 from train.evaluation.protocol import Evaluator
-from train.trainer import Trainer
+from train.loop.trainer import Trainer
 
 
 @pytest.mark.slow

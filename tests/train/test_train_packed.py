@@ -14,8 +14,8 @@ from train.config import TrainConfig
 from train.experiments.catalog import get_experiment
 from train.experiments.jobs import Pack, execute, execute_pack
 from train.experiments.sweep import pack_jobs, plan
-from train.packing import check_packable, group_packable
-from train.trainer import Trainer
+from train.loop.packing import check_packable, group_packable
+from train.loop.trainer import Trainer
 
 TINY = TrainConfig().replace(task="salad", dynamism=0.1, eps_start=0.3, warmup_steps=200, epoch_steps=100,
                              updates_per_epoch=30, buffer_size=2_000, eval_every=100, eval_rollouts=4,
@@ -149,7 +149,7 @@ def test_the_learners_epsilon_is_each_rows_config_epsilon():
 
 def test_a_run_interrupted_inside_an_evaluation_is_reported_interrupted(tmp_path, monkeypatch):
     from train.experiments import jobs as jobs_module
-    from train.runlog import Interrupted
+    from train.loop.runlog import Interrupted
 
     def interrupted(*args):
         raise Interrupted("a signal during a long evaluation")

@@ -17,8 +17,8 @@ import pytest
 
 from train.cli import main
 from train.config import TrainConfig
+from train.loop.trainer import Trainer
 from train.storage.rundir import ADDED_COLUMNS, RunDirError, check_same_run
-from train.trainer import Trainer
 
 REPO = Path(__file__).resolve().parents[2]
 ARGS = ["train", "salad", "--dynamism", "0.1", "--eps-start", "0.5", "--steps", "3000", "--epoch-steps", "200",
@@ -198,7 +198,7 @@ def test_a_checkpoint_from_before_the_collapse_columns_still_resumes(tmp_path):
 
 
 def test_a_diverged_seed_resumes_and_neither_blocks_the_others_nor_is_exported(tmp_path):
-    from train.policy import export_run_policies, load_policy
+    from train.storage.policy import export_run_policies, load_policy
     from train.storage.rundir import RunDir
 
     cfg = SMALL.replace(seeds=3, reset_free=True, steps=600)
@@ -227,8 +227,8 @@ def test_a_stop_after_the_checkpoint_decision_trains_one_more_epoch_and_saves(tm
     """
     from contextlib import contextmanager
 
-    import train.trainer as trainer_module
-    from train.runlog import request_stop
+    import train.loop.trainer as trainer_module
+    from train.loop.runlog import request_stop
 
     trainer = Trainer(SMALL.replace(steps=2000), tmp_path / "run")
     real_bar = trainer_module.progress_bar

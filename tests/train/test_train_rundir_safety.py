@@ -13,7 +13,7 @@ import pytest
 from run_metrics import metrics_without_timing
 
 from train.cli import main
-from train.policy import load_policy_file, save_policy
+from train.storage.policy import load_policy_file, save_policy
 
 REPO = Path(__file__).resolve().parents[2]
 TINY = ["--epoch-steps", "200", "--updates-per-epoch", "10", "--eval-every", "200", "--eval-rollouts", "2",
@@ -226,11 +226,11 @@ def _rewrite(path: Path, params: np.ndarray) -> Path:
     ("object", "not an ecorl policy file"),
 ])
 def test_bad_policy_files_are_refused_in_one_line(policy, damage, message, capsys, monkeypatch):
-    import train.policy
+    import train.storage.policy
 
     params = load_policy_file(policy).params.numpy()
-    limits = {**train.policy.MAX_POLICY_MEMBER_BYTES, "params.npy": 8 * params.size + 1024}
-    monkeypatch.setattr(train.policy, "MAX_POLICY_MEMBER_BYTES", limits)  # this network, with room to spare
+    limits = {**train.storage.policy.MAX_POLICY_MEMBER_BYTES, "params.npy": 8 * params.size + 1024}
+    monkeypatch.setattr(train.storage.policy, "MAX_POLICY_MEMBER_BYTES", limits)  # this network, with room to spare
     if damage == "float64":
         params = params.astype(np.float64)
     elif damage == "nan":

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from train.config import TrainConfig
+from train.loop.trainer import Trainer
 from train.tasks import TASKS
-from train.trainer import Trainer
 
 TINY = dict(seeds=2, steps=2200, updates_per_epoch=50, eval_every=1000, eval_rollouts=4, eval_horizon=40,
             buffer_size=5_000, progress=False)

@@ -1,6 +1,6 @@
 """The learner seam: what the training loop asks of a learning algorithm, and the batched double DQN behind it.
 
-The loop (`train.trainer`) owns seeds, worlds, evaluation, checkpoints and logging; a `Learner` owns
+The loop (`train.loop.trainer`) owns seeds, worlds, evaluation, checkpoints and logging; a `Learner` owns
 everything about learning: networks, optimiser, replay, exploration, intrinsic rewards and the schedule of
 collecting and updating. Agent row ``k`` of a learner is one seed of one condition; a packed learner holds
 the rows of several conditions of one task (`RowSettings` gives each row its own learning rate,
@@ -109,7 +109,7 @@ class DQNLearner:
         `train.agent.staging`).
         """
         self.rows = list(rows)
-        self.cfg = cfg = self.rows[0].dqn  # the settings every row shares (`train.packing` checks them)
+        self.cfg = cfg = self.rows[0].dqn  # the settings every row shares (`train.loop.packing` checks them)
         self.num_actions = net.num_actions
         obs_dim = net.view_dim + net.inventory_dim
         self.device = torch.device(device)

@@ -56,7 +56,7 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Print the policy's and a random policy's success and mean return (the return alone on a task measured
     by it), and with ``--random-draws`` the spread of the random baseline.
     """
-    from train.policy import load_policy
+    from train.storage.policy import load_policy
     from train.tasks import get_task
 
     with user_errors(ValueError, OSError, RunDirError):

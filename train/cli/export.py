@@ -26,7 +26,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Export the policy and print what was written."""
-    from train.policy import export_policy, load_policy_file
+    from train.storage.policy import export_policy, load_policy_file
 
     with user_errors(ValueError, OSError, RunDirError):
         path = export_policy(args.run, args.out, args.agent)

@@ -28,7 +28,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Merge the parts and say what was written."""
     from train.experiments.merge import merge_seed_runs
-    from train.policy import run_config
+    from train.storage.policy import run_config
 
     check_out_dir(args.out)
     with user_errors(ValueError, OSError, RunDirError):

@@ -158,7 +158,7 @@ def _check_out_and_device(args: argparse.Namespace) -> None:
     """Refuse (one line) an --out that is, or lies under, a file and a --device torch cannot use here."""
     check_out_dir(args.out)
     if args.device is not None:
-        from train.packing import check_device
+        from train.loop.packing import check_device
 
         with user_errors(ValueError):
             check_device(args.device)

@@ -103,9 +103,9 @@ def train_config(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
 
 def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     """Build the config and the trainer, then train; print a one-line summary per evaluation at the end."""
-    from train.runlog import Interrupted
+    from train.loop.runlog import Interrupted
+    from train.loop.trainer import Trainer
     from train.storage.rundir import RunDirError
-    from train.trainer import Trainer
 
     with user_errors(RunDirError, ValueError, TypeError, KeyError, OSError):
         cfg, out = train_config(args)

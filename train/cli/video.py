@@ -48,7 +48,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
 
 def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
     """The policy to film (None: random) and the default output path, from the parsed arguments."""
-    from train.policy import POLICY_DIR, is_policy_file, resolve_run_dir, shipped_policy
+    from train.storage.policy import POLICY_DIR, is_policy_file, resolve_run_dir, shipped_policy
 
     if args.random:
         return None, VIDEO_DIR / f"{args.task}-random.mp4"

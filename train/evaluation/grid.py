@@ -19,7 +19,7 @@ import numpy as np
 
 from ecology import validation_seeds
 from gridtasks.codes import Code
-from train.policy import Policy
+from train.storage.policy import Policy
 from train.tasks import get_task, make_vector_env
 
 FRESH_SEED_BASE = 2_000_000_000

@@ -20,12 +20,12 @@ import torch
 
 from ecology import validation_seeds
 from train.config import EvalConfig
-from train.runlog import Interrupted, stop_requested
+from train.loop.runlog import Interrupted, stop_requested
 from train.tasks import make_vector_env
 
 STOP_GRACE_S = 1.0
 """After SIGINT/SIGTERM an evaluation may run this long to finish (the run then checkpoints); a longer one is
-abandoned (`train.runlog.Interrupted`) and the run's last checkpoint stands."""
+abandoned (`train.loop.runlog.Interrupted`) and the run's last checkpoint stands."""
 EVAL_STREAM = 0xE7A1
 """Spawn key that separates evaluation draws from every training stream of a seed."""
 

@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 
 from train.experiments.jobs import Job, JobResult, Pack, execute_unit
-from train.runlog import request_stop, stop_requested
+from train.loop.runlog import request_stop, stop_requested
 
 
 def usable_cpus() -> int:
@@ -41,7 +41,7 @@ _SWEEP_FD: int | None = None
 """In a local worker process on Linux: a pidfd of the sweep, readable once the sweep has exited (immune to the
 pid being reused); None where pidfds are unavailable (the pid is polled instead)."""
 
-WORKER_PRELOAD = ("train.experiments.jobs", "train.trainer", "train.policy")
+WORKER_PRELOAD = ("train.experiments.jobs", "train.loop.trainer", "train.storage.policy")
 """What the fork server imports once (torch, the trainer, every environment), so that a worker starts in a
 fraction of a second instead of importing them again (about 4 s of a core each)."""
 

@@ -17,7 +17,7 @@ from typing import Any
 
 from train.config import TrainConfig
 from train.experiments import table1
-from train.runlog import Interrupted
+from train.loop.runlog import Interrupted
 from train.storage.fileio import atomic_text, is_temporary
 from train.storage.rundir import RUN_POLICIES_DIR
 from train.storage.safeio import UnsafeFileError, load_json
@@ -67,7 +67,7 @@ class Job:
 
 @dataclass(frozen=True)
 class Pack:
-    """Several training jobs of one task trained by one packed trainer (`train.packing`)."""
+    """Several training jobs of one task trained by one packed trainer (`train.loop.packing`)."""
 
     jobs: tuple[Job, ...]
 
@@ -212,9 +212,9 @@ def _train(jobs: list[Job], opened: list) -> bool:
     """Train ``jobs`` (one trainer; packed when several) from their opened run directories; write each done
     marker when the runs reach their budget. Returns False when a signal stopped them (with checkpoints).
     """
-    from train.policy import export_run_policies
-    from train.runlog import PROGRESS_FILE, heartbeat_to
-    from train.trainer import Trainer
+    from train.loop.runlog import PROGRESS_FILE, heartbeat_to
+    from train.loop.trainer import Trainer
+    from train.storage.policy import export_run_policies
 
     began = time.perf_counter()
     cfgs = [TrainConfig.from_dict(j.config) for j in jobs]

@@ -36,8 +36,8 @@ import torch
 
 from train.config import TrainConfig
 from train.experiments.jobs import DONE_FILE, read_done
-from train.policy import export_run_policies, load_run
 from train.storage.fileio import atomic_dir, atomic_text
+from train.storage.policy import export_run_policies, load_run
 from train.storage.rundir import (
     EXPERIMENT_FILE,
     LOCK_NAME,

@@ -121,10 +121,10 @@ def _read_json(path: Path) -> dict[str, Any]:
 
 def pack_jobs(jobs: Sequence[Job], workers: int = 1) -> list[Job | Pack]:
     """The training jobs grouped into packs of conditions that one trainer can train together
-    (`train.packing`), each group split into up to ``workers`` packs of about equal size so that every
+    (`train.loop.packing`), each group split into up to ``workers`` packs of about equal size so that every
     worker process gets one (a pack of one stays a job); measurements stay single.
     """
-    from train.packing import group_packable
+    from train.loop.packing import group_packable
 
     training = [j for j in jobs if not j.is_measurement]
     units: list[Job | Pack] = [j for j in jobs if j.is_measurement]
@@ -150,7 +150,7 @@ def _duration(seconds: float | None) -> str:
 
 def heartbeat(job: Job, began: float) -> dict | None:
     """The job's last heartbeat, if it wrote one since ``began`` (wall-clock seconds)."""
-    from train.runlog import PROGRESS_FILE, read_heartbeat
+    from train.loop.runlog import PROGRESS_FILE, read_heartbeat
 
     beat = read_heartbeat(Path(job.run_dir) / PROGRESS_FILE)
     return None if beat is None or beat.get("time", 0) < began - 1 else beat

@@ -62,7 +62,7 @@ class Speed:
 
 def _timed_epochs(cfg: TrainConfig, epochs: int, evaluate: bool = False) -> tuple[float, float, float]:
     """(seconds to the end of the first epoch, seconds per later epoch, seconds of one evaluation)."""
-    from train.trainer import Trainer
+    from train.loop.trainer import Trainer
 
     began = time.perf_counter()
     trainer = Trainer(cfg)
@@ -206,7 +206,7 @@ def kind_labels(kinds: list[tuple[tuple[str, str], ...]]) -> list[str]:
 
 def _left(job, total_steps: int) -> float:
     """The share of a job's ``total_steps`` still to train (its heartbeat's step, where it ran before)."""
-    from train.runlog import PROGRESS_FILE, read_heartbeat
+    from train.loop.runlog import PROGRESS_FILE, read_heartbeat
 
     beat = read_heartbeat(Path(job.run_dir) / PROGRESS_FILE)
     return 1.0 if beat is None else max(0.0, 1.0 - int(beat["step"]) / total_steps)

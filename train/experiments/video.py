@@ -1,7 +1,7 @@
 """Rollout videos: a trained policy (or a uniform random one) in a task's test MDP or training env.
 
 The policy is one seed's network from a run directory, its ``checkpoint.npz``, or a policy file
-(`train.policy`); it acts epsilon-greedily (epsilon 0.05 by default).
+(`train.storage.policy`); it acts epsilon-greedily (epsilon 0.05 by default).
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from train.policy import Policy, load_policy
 from train.storage.fileio import atomic_path, atomic_write
+from train.storage.policy import Policy, load_policy
 
 H264_OPTIONS = ("-f", "mp4", "-threads", "1", "-movflags", "+faststart", "-map_metadata", "-1", "-fflags", "+bitexact",
                 "-flags:v", "+bitexact", "-preset", "medium", "-crf", "20")

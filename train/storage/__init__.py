@@ -5,6 +5,8 @@
 * `checkpoint`: the checkpoint file format (data only, never code) and `statecheck`, the checks on its values
   before any of them reaches torch, numpy's generators or the engine;
 * `rundir`: a run directory's layout: resolved config, metrics, visitation counts, checkpoint.
+* `policy`: policy files (one seed's network and its config, small enough to ship) and reading a policy
+  from a run.
 
 The package itself imports none of its modules, and no torch.
 """

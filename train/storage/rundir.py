@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from train.config import TrainConfig
-from train.memory import checkpoint_limit
+from train.loop.memory import checkpoint_limit
 from train.storage.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, CheckpointError, legacy_message, read_checkpoint
 from train.storage.checkpoint import write_checkpoint as _write_checkpoint
 from train.storage.fileio import FileLock, LockedError, atomic_file, atomic_write, is_temporary

@@ -140,8 +140,8 @@ def test_dqn_builds_the_configured_inventory_repeat():
 
 def test_trainer_and_policy_use_the_configured_inventory_repeat():
     from train.config import TrainConfig
-    from train.policy import Policy
-    from train.trainer import Trainer
+    from train.loop.trainer import Trainer
+    from train.storage.policy import Policy
 
     cfg = TrainConfig().replace(task="salad", seeds=2, inventory_repeat=8, buffer_size=1000, warmup_steps=50,
                                 epoch_steps=50, updates_per_epoch=20, eval_every=50, progress=False)
@@ -158,7 +158,7 @@ def test_trainer_and_policy_use_the_configured_inventory_repeat():
 
 def test_a_seed_in_a_sparse_batch_follows_its_run_alone():
     from train.config import TrainConfig
-    from train.trainer import Trainer
+    from train.loop.trainer import Trainer
 
     def trained(first_seed: int, seeds: int) -> Trainer:
         cfg = TrainConfig().replace(task="salad", dynamism=0.1, first_seed=first_seed, seeds=seeds, eps_start=0.3,

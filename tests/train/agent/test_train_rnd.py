@@ -7,7 +7,7 @@ import torch
 
 from train.agent.rnd import RND, RunningMoments
 from train.config import RNDConfig, TrainConfig
-from train.trainer import Trainer
+from train.loop.trainer import Trainer
 
 
 def test_running_moments_match_numpy():

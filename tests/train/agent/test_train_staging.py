@@ -114,7 +114,7 @@ def test_a_cuda_graph_replays_the_eager_gradient_step(rnd):
 
 
 def test_the_memory_check_counts_what_a_chunk_stages():
-    from train.memory import estimate_bytes
+    from train.loop.memory import estimate_bytes
 
     replay = _filled_replay()
     stager = Stager(replay, TINY.dqn.batch_size, TINY.dqn.updates_per_epoch, torch.device("cpu"), static=False)

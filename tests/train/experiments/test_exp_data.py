@@ -172,8 +172,8 @@ SPEC_TEST_HORIZON = {"salad": 100, "hunting": 200, "scavenging": 200, "factory":
 
 
 def test_every_condition_is_evaluated_at_the_test_horizon(tmp_path):
+    from train.loop.trainer import resolve
     from train.tasks import get_task, probe
-    from train.trainer import resolve
 
     seen = set()
     for exp in EXPERIMENTS.values():

@@ -13,9 +13,9 @@ from train.experiments.catalog import get_experiment
 from train.experiments.jobs import job_is_done, read_done
 from train.experiments.merge import merge_seed_runs
 from train.experiments.sweep import plan, write_experiment_file
-from train.policy import load_policy_file
+from train.loop.trainer import Trainer
+from train.storage.policy import load_policy_file
 from train.storage.rundir import RunDirError
-from train.trainer import Trainer
 
 RUN = ["run", "episodic-vs-reset-free", "--budget", "smoke", "--task", "salad", "--condition", "static-episodic",
        "--jobs", "1", "--no-progress"]

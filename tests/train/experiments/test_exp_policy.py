@@ -13,7 +13,7 @@ import torch
 
 from train import cli
 from train.config import TrainConfig
-from train.policy import (
+from train.storage.policy import (
     POLICY_DIR,
     export_policy,
     export_run_policies,

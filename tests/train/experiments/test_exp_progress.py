@@ -15,14 +15,14 @@ from train.experiments.catalog import get_experiment
 from train.experiments.jobs import Job
 from train.experiments.sweep import ProgressMonitor, plan, progress_line
 from train.experiments.timebox import Speed, estimate, fit_steps, kind_labels, makespan, resize_jobs, run_kind
-from train.runlog import PROGRESS_FILE, heartbeat_to, read_heartbeat
+from train.loop.runlog import PROGRESS_FILE, heartbeat_to, read_heartbeat
 
 TINY = TrainConfig().replace(task="salad", steps=1200, updates_per_epoch=5, eval_every=500, eval_rollouts=2,
                              eval_horizon=10, buffer_size=2000, progress=False)
 
 
 def test_a_trainer_under_heartbeat_to_writes_its_progress(tmp_path):
-    from train.trainer import Trainer
+    from train.loop.trainer import Trainer
 
     path = tmp_path / PROGRESS_FILE
     trainer = Trainer(TINY)
@@ -35,7 +35,7 @@ def test_a_trainer_under_heartbeat_to_writes_its_progress(tmp_path):
 
 
 def test_no_heartbeat_without_heartbeat_to(tmp_path, monkeypatch):
-    from train.trainer import Trainer
+    from train.loop.trainer import Trainer
 
     monkeypatch.chdir(tmp_path)
     trainer = Trainer(TINY.replace(steps=700))
@@ -122,7 +122,7 @@ def test_speed_is_measured_in_as_many_processes_as_will_train_side_by_side():
 
 def test_a_stopped_run_leaves_its_heartbeat_at_the_step_it_stopped(tmp_path):
     """progress.json said step 700 of a run that stopped at 5 700 (a heartbeat is due only every few seconds)."""
-    from train.runlog import Heartbeat
+    from train.loop.runlog import Heartbeat
 
     class Bar:
         def update(self, n):

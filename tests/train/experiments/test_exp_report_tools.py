@@ -69,8 +69,8 @@ def test_corner_shares_count_the_four_cells_inside_the_outer_wall(tmp_path):
 def test_the_collapse_tool_reads_exported_policies_and_the_late_corner_visits(tmp_path):
     from train.config import TrainConfig
     from train.experiments.report.collapse import action_name, collapse_table, main
-    from train.policy import export_run_policies
-    from train.trainer import Trainer
+    from train.loop.trainer import Trainer
+    from train.storage.policy import export_run_policies
 
     cfg = TrainConfig().replace(task="hunting", seeds=2, steps=1_000, epoch_steps=250, updates_per_epoch=10,
                                 eval_every=500, eval_rollouts=3, eval_horizon=10, buffer_size=1_000,

@@ -253,7 +253,7 @@ sweep.wait()  # the sweep is gone
 
 _WATCH = _GONE_SWEEP + """
 import signal, sys, threading, time
-from train.runlog import stop_on_signal
+from train.loop.runlog import stop_on_signal
 executors.SWEEP_POLL_S = 0.05
 terms = []
 with stop_on_signal() as stop:
@@ -268,7 +268,7 @@ print(len(terms))
 
 _HANG = _GONE_SWEEP + """
 import threading
-from train.runlog import stop_on_signal
+from train.loop.runlog import stop_on_signal
 executors.SWEEP_POLL_S, executors.ORPHAN_GRACE_S = 0.05, 0.5
 with stop_on_signal() as stop:
     stop.set()  # a signal arrived: the worker is stopping

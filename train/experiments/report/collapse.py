@@ -31,7 +31,7 @@ from train.storage.safeio import load_json
 GRID_ACTIONS = ("west", "east", "north", "south", "pick up", "interact", "place")
 """The grid tasks' actions (`gridtasks.engine.ACTION_NAMES`), named here so the report needs no engine."""
 POLICY_NAMES = ("best", "median")
-"""The exported policies of a shipped run (`train.policy.export_run_policies`)."""
+"""The exported policies of a shipped run (`train.storage.policy.export_run_policies`)."""
 
 
 def action_name(num_actions: int, action: int) -> str:
@@ -45,7 +45,7 @@ def action_name(num_actions: int, action: int) -> str:
 
 def policy_rows(run_dir: Path) -> list[str]:
     """One cell text per exported policy: 'best (seed 3): north 81% of greedy steps, collapsed; success 0%'."""
-    from train.policy import load_policy_file
+    from train.storage.policy import load_policy_file
 
     cells = []
     for name in POLICY_NAMES:

@@ -1,4 +1,4 @@
-"""One condition inside a trainer (`train.trainer.Trainer`): its rows of the learner, its worlds, what it writes."""
+"""One condition inside a trainer (`train.loop.trainer.Trainer`): its rows of the learner, its worlds, its outputs."""
 
 from __future__ import annotations
 

@@ -38,7 +38,7 @@ from train.storage.safeio import load_json, loads_json, open_regular, read_npy, 
 from train.storage.statecheck import check_counter
 from train.tasks import get_task, probe
 
-POLICY_DIR = Path(__file__).resolve().parent / "data" / "policies"
+POLICY_DIR = Path(__file__).resolve().parents[1] / "data" / "policies"
 """Where the repository keeps one trained policy per grid task (``<task>.npz``)."""
 
 POLICY_FORMAT = 1

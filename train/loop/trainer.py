@@ -27,10 +27,10 @@ from train.agent.learner import STREAMS, DQNLearner, Learner, RowSettings, seed_
 from train.agent.network import QNetwork
 from train.config import TrainConfig
 from train.evaluation.protocol import Evaluator, run_evaluation_kwargs
-from train.memory import check_memory
-from train.packing import check_device, check_packable
-from train.parts import Part
-from train.runlog import RunLogger, postfix, progress_bar, stop_on_signal
+from train.loop.memory import check_memory
+from train.loop.packing import check_device, check_packable
+from train.loop.parts import Part
+from train.loop.runlog import RunLogger, postfix, progress_bar, stop_on_signal
 from train.storage.rundir import ADDED_COLUMNS, RunDir, RunDirError
 from train.storage.statecheck import check_state, steps_left
 from train.tasks import (
@@ -67,7 +67,7 @@ class Trainer:
     @classmethod
     def packed(cls, cfgs: Sequence[TrainConfig], run_dirs: Sequence[str | Path | RunDir | None],
                resume: Sequence[bool]) -> Trainer:
-        """One trainer for several conditions of one task (`train.packing.check_packable` says which pack)."""
+        """One trainer for several conditions of one task (`train.loop.packing.check_packable` says which pack)."""
         trainer = cls.__new__(cls)
         trainer._build(list(cfgs), list(run_dirs), list(resume))
         return trainer
