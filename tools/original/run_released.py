@@ -42,6 +42,7 @@ SCRIPTS = {
     "factory-fig4": "experiments/continual/dynamic_static/factory/dqn.py",
     "scavenging-shaping": "experiments/continual/env_shaping/monster/dqn.py",
     "hunting-shaping": "experiments/continual/env_shaping/distance_increasing/deer/tool_dqn.py",
+    "salad-shaping": "experiments/continual/env_shaping/distance_increasing/axe/tool_dqn.py",
 }
 """Named released scripts; any other script path inside the checkout also works."""
 NUM_ACTIONS = 7
