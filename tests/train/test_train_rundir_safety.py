@@ -81,6 +81,16 @@ def test_resume_inherits_every_setting_and_may_grow_the_run(tmp_path, capsys):
     assert metrics_without_timing(run) == metrics_without_timing(reference)
 
 
+def test_resume_takes_the_steps_the_run_was_made_with_though_they_round_up_to_an_epoch(tmp_path, capsys):
+    run = tmp_path / "run"
+    assert main(["train", "salad", "--steps", "450", *TINY, "--out", str(run)]) == 0  # 450 ends at step 600
+    assert metrics_without_timing(run)[-1]["step"] == "600"
+    assert main(["train", "salad", "--resume", "--steps", "450", "--out", str(run)]) == 0
+    capsys.readouterr()
+    assert main(["train", "salad", "--resume", "--steps", "399", "--out", str(run)]) == 2
+    assert "--steps 399 is below step 600" in _one_line_error(capsys)
+
+
 @pytest.mark.parametrize(("flags", "message"), [
     (["--steps", "200"], "--steps 200 is below step 400"),
     (["--lr", "0.001"], "with --lr 0.001: the run was made with 0.0003"),

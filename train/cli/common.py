@@ -21,7 +21,13 @@ DEFAULT_OUT = Path("results")
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line (``PROG: error: MESSAGE``, exit status 2), no usage."""
+    """An argument parser whose errors are one line (``PROG: error: MESSAGE``, exit status 2), no usage, and
+    that takes no abbreviated flag (``--seed 3`` is refused with a hint, not read as ``--seeds 3``).
+    """
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
         """Exit with ``message`` on one line (argparse calls this for bad input), with the nearest valid name

@@ -31,8 +31,9 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     with user_errors(ValueError, OSError, RunDirError):
         path = export_policy(args.run, args.out, args.agent)
     meta = load_policy_file(path).meta
-    success = meta.get("validation_success")
-    shown = "n/a" if success is None else f"{100 * success:.0f} %"
-    print(f"{path}: agent {meta['agent']} at step {meta['step']}, validation success {shown} (the run's own "
+    success, ret = meta.get("validation_success"), meta.get("validation_return")
+    shown = (f"validation return {ret:.1f}" if ret is not None else
+             f"validation success {'n/a' if success is None else f'{100 * success:.0f} %'}")
+    print(f"{path}: agent {meta['agent']} at step {meta['step']}, {shown} (the run's own "
           f"evaluation; `ecorl evaluate {path}` draws the exploration afresh, so its figure differs by sampling noise)")
     return 0

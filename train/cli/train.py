@@ -33,10 +33,11 @@ def resume_config(out: Path, task: str, given: dict[str, Any]) -> TrainConfig:
             raise RunDirError(f"cannot resume {out} with {flag(key)} {shown(value)}: the run was made with "
                               f"{shown(identity[key])} (see {out / 'config.json'}); leave {flag(key)} out to keep "
                               f"it, or start a fresh run in another --out")
-    if given.get("steps", step) < step:
+    resumed = saved.replace(**{k: v for k, v in given.items() if k in runtime})
+    if resumed.total_steps < step:  # steps round up to whole epochs: --steps 20000 ends at step 20200
         raise RunDirError(f"--steps {given['steps']} is below step {step}, where the run in {out} stands; give "
                           f"--steps >= {step} (or leave it out to keep {saved.run.steps})")
-    return saved.replace(**{k: v for k, v in given.items() if k in runtime})
+    return resumed
 
 
 def default_run_dir(cfg: TrainConfig) -> Path:

@@ -184,6 +184,16 @@ def validation_success(run_dir: Path, step: int | None = None, column: str = "su
                          f"rebuild it from the checkpoint with 'ecorl train TASK --resume'") from None
 
 
+def seed_scores(run_dir: Path, step: int) -> tuple[str, dict[int, float]]:
+    """What ranks a run's seeds at evaluation ``step``: ``('success', ...)``, or ``('return', ...)`` where the task
+    has no success (every value NaN: the food collector).
+    """
+    scores = validation_success(run_dir, step)
+    if scores and all(np.isnan(v) for v in scores.values()):
+        return "return", validation_success(run_dir, step, "return")
+    return "success", scores
+
+
 def load_run(path: str | Path) -> tuple[Path, dict[str, Any]]:
     """The run directory of ``path`` and its verified checkpoint (configuration, step and online networks)."""
     run_dir = resolve_run_dir(path)
@@ -218,9 +228,9 @@ def _policy_of(run_dir: Path, state: dict[str, Any], seed_index: int) -> Policy:
         raise ValueError(f"{run_dir} trained {cfg.run.seeds} seed(s); --agent must be in [0, {cfg.run.seeds})")
     step = int(state["step"])
     meta = {"source": run_label(run_dir), "step": step, "agent": seed_index}
-    success = validation_success(run_dir, step)
-    if seed_index in success:
-        meta["validation_success"] = success[seed_index]
+    column, scores = seed_scores(run_dir, step)
+    if seed_index in scores:
+        meta[f"validation_{column}"] = scores[seed_index]
     params = state["agent"]["online"][seed_index:seed_index + 1].clone()
     return Policy(cfg, params, cfg.run.seed_list[seed_index], meta)
 
@@ -328,12 +338,12 @@ def load_policy(path: str | Path, seed_index: int = 0) -> Policy:
 
 def export_policy(run_dir: str | Path, out: str | Path, seed_index: int | None = None) -> Path:
     """Write seed ``seed_index`` of a run as a policy file; by default the seed with the best validation
-    success at the checkpoint's step.
+    success (the return where the task has no success) at the checkpoint's step.
     """
     run_dir, state = load_run(run_dir)
     if seed_index is None:
-        success = validation_success(run_dir, int(state["step"]))
-        seed_index = max(success, key=lambda k: (success[k], -k)) if success else 0
+        _, scores = seed_scores(run_dir, int(state["step"]))
+        seed_index = max(scores, key=lambda k: (np.nan_to_num(scores[k], nan=-np.inf), -k)) if scores else 0
     return save_policy(_policy_of(run_dir, state, seed_index), out)
 
 
@@ -345,9 +355,7 @@ def export_run_policies(run_dir: str | Path, state: dict[str, Any] | None = None
     """
     run_dir, state = (Path(run_dir), state) if state is not None else load_run(run_dir)
     step = int(state["step"])
-    scores = validation_success(run_dir, step)
-    if scores and all(np.isnan(v) for v in scores.values()):
-        scores = validation_success(run_dir, step, "return")
+    _, scores = seed_scores(run_dir, step)
     online = state["agent"]["online"]
     scores = {k: v for k, v in scores.items() if bool(torch.isfinite(online[k]).all())}  # diverged seeds cannot act
     if not scores:

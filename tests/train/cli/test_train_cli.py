@@ -105,6 +105,9 @@ def test_a_misspelt_flag_or_choice_is_named_by_its_subcommand_with_the_nearest_v
                         "you mean --seeds?"),
                        (["run", "headline", "--budgte", "paper"], "ecorl run: error: unrecognized arguments: --budgte "
                         "paper; did you mean --budget?"),
+                       (["train", "salad", "--seed", "3"], "ecorl train: error: unrecognized arguments: --seed 3; "
+                        "did you mean --seeds?"),  # an abbreviation is not taken for --seeds
+                       (["run", "--lis"], "ecorl run: error: unrecognized arguments: --lis; did you mean --list?"),
                        (["train", "salad", "--zzz"], "ecorl train: error: unrecognized arguments: --zzz (see ecorl "
                         "train --help)"),
                        (["trian"], "did you mean train?"), (["merge"], "did you mean merge-seeds?"),

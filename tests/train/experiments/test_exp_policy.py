@@ -158,6 +158,26 @@ def test_bad_policy_files_are_refused(run_dir, tmp_path):
         load_policy(tmp_path / "missing.npz")
 
 
+def test_export_ranks_by_the_return_where_the_task_has_no_success(run_dir, tmp_path, capsys):
+    # the food collector's metrics: success NaN in every row, the return ranks the seeds (as the report films)
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    step = policy_from_run(copy, 0).meta["step"]
+    rows = list(csv.DictReader((copy / "metrics.csv").open()))
+    last_seed = max(int(r["seed"]) for r in rows)
+    for r in rows:
+        r["success"] = "nan"
+        r["return"] = str(42.0 if int(r["step"]) == step and int(r["seed"]) == last_seed else 1.0)
+    with (copy / "metrics.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    assert cli.main(["export", str(copy), "--out", str(tmp_path / "best.npz")]) == 0
+    policy = load_policy(tmp_path / "best.npz")
+    assert policy.seed == last_seed and policy.meta["validation_return"] == 42.0
+    assert "validation return 42.0" in capsys.readouterr().out
+
+
 def test_export_and_video_commands(run_dir, tmp_path, capsys):
     out = tmp_path / "salad.npz"
     assert cli.main(["export", str(run_dir), "--out", str(out), "--agent", "1"]) == 0
@@ -306,3 +326,4 @@ def test_shipped_scavenging_runs_name_the_predator_respawn_they_trained_with():
         for path in (run / "policies").glob("*.npz"):
             policy = load_policy_file(path)
             assert policy.test_kwargs["predator_respawn"] == "off-agent", path
+
