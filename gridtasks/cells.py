@@ -146,17 +146,22 @@ def free_cell(w, n: int, x: int, y: int) -> bool:
 
 
 @nb.njit(cache=True)
-def directed_step(w, n: int, x: int, y: int, direction: int):
-    """Best of N, W, S, E, stay (free targets only) for moving toward (+1) or away from (-1) the agent."""
-    ax, ay = w.agent[0], w.agent[1]
+def directed_step(w, n: int, x: int, y: int, direction: int, ax: int, ay: int, blocked_stays: bool):
+    """The step toward (+1) or away from (-1) the cell (ax, ay): the first best of N, W, S, E, stay. With
+    ``blocked_stays`` (the original's rule) every interior step competes and a best step onto an object is not
+    taken (the creature stays); otherwise only free cells compete.
+    """
     best_x, best_y = x, y
     best = direction * (abs(x - ax) + abs(y - ay))
     for k in range(4):
         nx, ny = x + STEP_DX[k], y + STEP_DY[k]
-        if free_cell(w, n, nx, ny):
+        inside = 0 < nx < n - 1 and 0 < ny < n - 1  # the original clips a step into the wall: a stay
+        if inside if blocked_stays else free_cell(w, n, nx, ny):
             score = direction * (abs(nx - ax) + abs(ny - ay))
             if score < best:
                 best, best_x, best_y = score, nx, ny
+    if blocked_stays and (best_x != x or best_y != y) and not free_cell(w, n, best_x, best_y):
+        return x, y
     return best_x, best_y
 
 

@@ -222,7 +222,7 @@ def step_world(w, r, action: int, obs):
     start_x, start_y = w.agent[0], w.agent[1]
     creatures_first = r.creatures_before_hands and action >= PICK_UP
     if creatures_first:
-        move_creatures(w, r, s)
+        move_creatures(w, r, s, start_x, start_y)
     picked, made, placed_on, dropped, delivered = act(w, r, action)
     solved = delivered or (picked != 0 and picked == r.goal_pickup) or (made != 0 and made == r.goal_made)
     if solved:
@@ -232,7 +232,7 @@ def step_world(w, r, action: int, obs):
         elif r.reset_free and not delivered:
             w.inventory = 0  # the world goes on: the completed task's object is consumed (and regrows)
     if not creatures_first:
-        move_creatures(w, r, s)
+        move_creatures(w, r, s, start_x, start_y)
     move_predators(w, r, start_x, start_y)
     grow_resources(w, r, s)
     replenish_predators(w, r)

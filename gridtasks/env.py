@@ -74,6 +74,36 @@ class SpawnRules(EpisodeRules):
     the last lettuce grows a new one at once and hunting keeps 2 axes on the grid while one is carried."""
 
 
+DIRECTED_MOVES = ("original", "current-free")
+"""The rules of a step toward or away from the agent (`DirectedMoves.directed_moves`)."""
+
+
+@dataclass(frozen=True)
+class DirectedMoves(EpisodeRules):
+    """How creatures that step toward or away from the agent choose the step (hunting's easy and hard deer,
+    factory's cooperative workers); docs/fidelity.md gives the rules' measured effect.
+    """
+
+    directed_moves: str = "original"
+    """'original' (the original code's rule): the first best of N, W, S, E, stay for the creature's aim, taken
+    only if its cell holds no object (a blocked creature stays); workers and hard deer aim at the agent's cell
+    before its move this step, easy deer at its cell after it. 'current-free' (ecorl's rule until 2026-12-07):
+    the best step among the free cells, aiming at the agent's cell after its move."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_choice("directed_moves", self.directed_moves, DIRECTED_MOVES)
+
+    def fill_directed_rules(self, r: np.void, aim_before_move: tuple[int, ...]) -> None:
+        """Set the engine's directed-step rule; ``aim_before_move``: the codes that the original code aims at the
+        agent's cell before its move.
+        """
+        original = self.directed_moves == "original"
+        r["blocked_directed_stays"] = original
+        for code in aim_before_move:
+            r["aim_before_move"][code] = original
+
+
 def can_render(render_mode: str | None, seeded: bool) -> bool:
     """Whether an env can draw a frame: False, with Gymnasium's warning, without a render mode; an error before
     its first reset.

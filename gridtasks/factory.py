@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from gridtasks.codes import Code
 from gridtasks.engine import code_mask
-from gridtasks.env import EpisodeRules, GridTaskEnv, check_choice, check_positive_int
+from gridtasks.env import DirectedMoves, GridTaskEnv, check_choice, check_positive_int
 
 WORKERS = (Code.METAL_WORKER, Code.WOOD_WORKER)
 MATERIALS = (Code.METAL, Code.WOOD)
@@ -24,7 +24,7 @@ RELEASED_AXE = 100.0
 
 
 @dataclass(frozen=True)
-class FactoryConfig(EpisodeRules):
+class FactoryConfig(DirectedMoves):
     """Parameters of the factory task."""
 
     grid_size: int = 8
@@ -87,7 +87,11 @@ class FactoryEnv(GridTaskEnv):
     ## Dynamism and shaping
     dynamism p: each step each worker, with probability p, picks one of N, W, S, E, stay at random and
     moves there if the cell holds no object (the original's rule).
-    shaping s(t): with probability s(t) a worker instead steps toward the agent ("cooperative workers").
+    shaping s(t): with probability s(t) a worker instead steps toward the agent ("cooperative workers"): with
+    ``directed_moves='original'`` (the original's rule) toward the cell the agent stood on before its move this
+    step, the first best of N, W, S, E, stay, not taken when that cell holds an object; with ``'current-free'``
+    toward its cell after the move, the best step among free cells (so a worker beside the agent steps onto
+    its cell, where it blocks a drop).
     The depot is fixed at (1, 1). Test MDP: static workers, horizon 200.
     """
 
@@ -110,6 +114,7 @@ class FactoryEnv(GridTaskEnv):
             r["wander_moves"][worker] = 5  # the original's workers pick among N, W, S, E and stay
             r["directed"][worker] = 1
             r["directed_by_shaping"][worker] = True
+        self.config.fill_directed_rules(r, aim_before_move=WORKERS)
         r["waypoint_repeats"] = True
         if self.config.goal == "make_axe":
             r["goal_made"] = Code.AXE

@@ -4,9 +4,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import gymnasium as gym
+
 from gridtasks.codes import Code
 from gridtasks.engine import code_mask
-from gridtasks.env import GridTaskEnv, SpawnRules, check_choice, check_positive_int, check_probability
+from gridtasks.env import (
+    DirectedMoves,
+    GridTaskEnv,
+    SpawnRules,
+    check_choice,
+    check_positive_int,
+    check_probability,
+)
 
 DEER_KINDS = {"wander": Code.DEER, "easy": Code.DEER_EASY, "hard": Code.DEER_HARD}
 SHAPING_MECHANISMS = ("easy_deer", "nearby")
@@ -14,7 +23,7 @@ ALL_DEER = (Code.DEER, Code.DEER_EASY, Code.DEER_HARD)
 
 
 @dataclass(frozen=True)
-class HuntingConfig(SpawnRules):
+class HuntingConfig(SpawnRules, DirectedMoves):
     """Parameters of the hunting task."""
 
     grid_size: int = 8
@@ -77,6 +86,10 @@ class HuntingEnv(GridTaskEnv):
     (``spawn_on_agent``).
     shaping s(t), ``shaping_mechanism='easy_deer'`` (paper): a fraction s(t) of newly spawned deer
     (including the initial ones, drawn at reset) are easy, the rest are of ``deer_kind``.
+    directed steps (``deer_speed`` > 0; ``directed_moves='original'``, the original's rule): a hard deer flees
+    the cell the agent stood on before its move this step, an easy deer approaches its cell after it; the
+    first best of N, W, S, E, stay, not taken when that cell holds an object. ``'current-free'``: both aim at
+    the agent's cell after its move and take the best step among free cells.
     ``'nearby'`` (original code): replenished deer and axes appear inside the salad-style window around
     the agent. Test MDP: static deer, no replenishment, horizon 200.
     """
@@ -95,6 +108,7 @@ class HuntingEnv(GridTaskEnv):
             r["wander_prob"][deer] = p
         r["directed"][Code.DEER_EASY], r["directed_prob"][Code.DEER_EASY] = 1, cfg.deer_speed
         r["directed"][Code.DEER_HARD], r["directed_prob"][Code.DEER_HARD] = -1, cfg.deer_speed
+        cfg.fill_directed_rules(r, aim_before_move=(Code.DEER_HARD,))  # the original's easy deer aim after it
         r["base_deer"] = DEER_KINDS[cfg.deer_kind]
         r["creatures_before_hands"] = True  # the original moves deer before the agent's pick-up / place
         r["goal_pickup"] = Code.FOOD
@@ -103,6 +117,10 @@ class HuntingEnv(GridTaskEnv):
             r["replenish"][Code.DEER], r["replenish"][Code.AXE] = cfg.deer_count, cfg.axe_count
         shaped = not self.ecology.shaping.is_zero
         r["easy_deer_shaping"] = shaped and cfg.shaping_mechanism == "easy_deer"
+        if r["easy_deer_shaping"] and cfg.deer_speed == 0:
+            gym.logger.warn("hunting's easy-deer shaping changes nothing while deer_speed is 0 (easy deer approach "
+                            "the agent with probability deer_speed); set deer_speed, e.g. 0.2 as the shaping "
+                            "experiments do, or shaping_mechanism='nearby'")
         r["near_spawn"][Code.DEER] = r["near_spawn"][Code.AXE] = shaped and cfg.shaping_mechanism == "nearby"
         r["stage_on_pickup"][Code.AXE] = 0
         r["stage_on_made"][Code.FOOD] = 1

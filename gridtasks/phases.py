@@ -95,8 +95,10 @@ def act(w, r, action: int):
 
 
 @nb.njit(cache=True)
-def move_creatures(w, r, s: float) -> None:
-    """Move every grid creature once: a directed step (toward/away from the agent) or a random step."""
+def move_creatures(w, r, s: float, before_x: int, before_y: int) -> None:
+    """Move every grid creature once: a directed step (toward/away from the agent's cell, after its move or,
+    where ``aim_before_move``, before it: (before_x, before_y)) or a random step.
+    """
     n = r.n
     xs = np.empty(n * n, dtype=np.int64)
     ys = np.empty(n * n, dtype=np.int64)
@@ -112,7 +114,9 @@ def move_creatures(w, r, s: float) -> None:
         c = w.grid[y, x]
         p_directed = s if r.directed_by_shaping[c] != 0 else r.directed_prob[c]
         if r.directed[c] != 0 and uniform(w) < p_directed:
-            nx, ny = directed_step(w, n, x, y, r.directed[c])
+            before = r.aim_before_move[c] != 0
+            ax, ay = (before_x, before_y) if before else (w.agent[0], w.agent[1])
+            nx, ny = directed_step(w, n, x, y, r.directed[c], ax, ay, r.blocked_directed_stays)
         elif uniform(w) < r.wander_prob[c]:
             nx, ny = random_step(w, n, x, y, r.wander_moves[c])
         else:

@@ -31,6 +31,12 @@ SETTINGS: dict[str, tuple[str, dict]] = {
     "hunting move=0": ("hunting", {"dynamism": 0.0}),
     "hunting move=0.2": ("hunting", {"dynamism": 0.2}),
     "factory move=0.2": ("factory", {"dynamism": 0.2}),
+    # cooperative workers at the released factory shaping sweep's point fac_move_prob 0.3 x close 0.8: a step
+    # toward the agent with probability 0.24, a random one with 0.06 (p = 0.06 / 0.76 of the other steps)
+    "factory coop=0.24": ("factory", {"dynamism": 0.06 / 0.76, "shaping": 0.24}),
+    "factory coop=0.2 static": ("factory", {"shaping": 0.2}),  # the start of the shaping experiments' schedule
+    "factory coop=1": ("factory", {"shaping": 1.0}),
+    "hunting hard deer=0.2": ("hunting", {"deer_kind": "hard", "deer_speed": 0.2}),  # the shaping experiments' deer
     "scavenging p=0.25": ("scavenging", {"dynamism": 0.25}),
 }
 """The settings the fidelity table reports: name -> (task, knobs)."""

@@ -122,6 +122,8 @@ def rules_dtype(n: int) -> np.dtype:
             ("directed", np.int64, (NC,)),  # +1 steps toward the agent, -1 away, 0 never
             ("directed_prob", np.float64, (NC,)),  # probability of that directed step
             ("directed_by_shaping", np.uint8, (NC,)),  # directed probability is the shaping strength
+            ("aim_before_move", np.uint8, (NC,)),  # a directed step aims at the agent's cell before its move
+            ("blocked_directed_stays", np.bool_),  # the original: the best step, taken only if its cell is free
             ("base_deer", np.int64),  # code of newly spawned deer
             ("easy_deer_shaping", np.bool_),  # a fraction s(t) of new deer are easy
             ("recipe", np.uint8, (NC, NC)),  # product of placing carried [row] on object [col]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ from fixtures import assert_map, cells, make, world_from_map
 import gridtasks
 from gridtasks import engine
 from gridtasks.codes import Code
-from gridtasks.engine import EAST, INTERACT, NORTH
+from gridtasks.engine import EAST, INTERACT, NORTH, WEST
 
 OPEN_CENTRE = """
 #######
@@ -43,7 +44,7 @@ def deer_moves(env, text: str, trials: int, agent=None, s: float = 0.0) -> dict[
     rules = env.unwrapped.rules[0]
     for _ in range(trials):
         world = world_from_map(env, text, agent=agent)
-        engine.move_creatures(world, rules, s)
+        engine.move_creatures(world, rules, s, *world["agent"])  # the agent has not moved
         (cell,) = cells(world, Code.DEER, Code.DEER_EASY, Code.DEER_HARD)
         counts[cell] = counts.get(cell, 0) + 1
     return counts
@@ -156,8 +157,10 @@ def test_directed_deer_take_the_best_step_with_tie_order_n_w_s_e_stay(kind, deer
     assert world["grid"][expected[1], expected[0]] == (Code.DEER_EASY if kind == "easy" else Code.DEER_HARD)
 
 
-def test_easy_deer_go_around_objects():
-    # N (3, 2) holds an axe: the next best approach, W, is taken
+@pytest.mark.parametrize(("rule", "expected"), [("original", (3, 3)), ("current-free", (2, 3))])
+def test_a_blocked_best_step_is_not_taken_by_the_original_rule_and_gone_around_by_current_free(rule, expected):
+    # N (3, 2) holds an axe and ties with W as the best approach: the original picks N and, blocked, stays;
+    # current-free picks the best free step, W
     text = """
     #######
     #.....#
@@ -167,10 +170,21 @@ def test_easy_deer_go_around_objects():
     #.....#
     #######
     """
-    env = hunting(deer_kind="easy", deer_speed=1.0)
+    env = hunting(deer_kind="easy", deer_speed=1.0, directed_moves=rule)
     world = world_from_map(env, text, agent=(1, 1))
     env.step(INTERACT)
-    assert cells(world, Code.DEER_EASY) == [(2, 3)]
+    assert cells(world, Code.DEER_EASY) == [expected]
+
+
+@pytest.mark.parametrize(("rule", "expected"), [("original", (3, 4)), ("current-free", (2, 3))])
+def test_hard_deer_flee_the_cell_the_agent_left_under_the_original_rule(rule, expected):
+    # the agent steps east from (2, 2) to (3, 2), beside the deer at (3, 3). Fleeing (2, 2), S and E tie at
+    # distance 3 (S first); fleeing (3, 2), W, S and E tie at 2 (W first)
+    env = hunting(deer_kind="hard", deer_speed=1.0, directed_moves=rule)
+    world = world_from_map(env, OPEN_CENTRE.replace("D", "H").replace("@", "."), agent=(2, 2))
+    env.step(EAST)
+    assert tuple(world["agent"]) == (3, 2)
+    assert cells(world, Code.DEER_HARD) == [expected]
 
 
 @pytest.mark.parametrize("kind", ["easy", "hard"])
@@ -411,7 +425,7 @@ def worker_moves(env, trials: int, agent=(1, 5), s: float = 0.0) -> dict[tuple[i
     rules = env.unwrapped.rules[0]
     for _ in range(trials):
         world = world_from_map(env, FACTORY, agent=agent)
-        engine.move_creatures(world, rules, s)
+        engine.move_creatures(world, rules, s, *world["agent"])  # the agent has not moved
         (cell,) = cells(world, Code.METAL_WORKER)
         counts[cell] = counts.get(cell, 0) + 1
     return counts
@@ -450,7 +464,7 @@ def test_workers_with_p1_never_move_onto_objects():
     """
     for _ in range(100):
         world = world_from_map(env, text, agent=(3, 3))
-        engine.move_creatures(world, rules, 0.0)
+        engine.move_creatures(world, rules, 0.0, *world["agent"])
         # metal worker at (2, 1): west is the depot, north a wall, so it goes S or E or stays
         assert cells(world, Code.METAL_WORKER)[0] in {(2, 1), (2, 2), (3, 1)}
         assert cells(world, Code.WOOD_WORKER)[0] in {(5, 5), (5, 4), (4, 5)}
@@ -474,6 +488,45 @@ def test_cooperative_workers_step_toward_the_agent_with_shaping_1():
     env.step(INTERACT)
     assert cells(world, Code.METAL_WORKER) == [(1, 3)]
     assert cells(world, Code.WOOD_WORKER) == [(3, 5)]
+
+
+@pytest.mark.parametrize(("rule", "expected"), [("original", (3, 2)), ("current-free", (2, 1))])
+def test_cooperative_workers_head_for_the_cell_the_agent_left_under_the_original_rule(rule, expected):
+    # the agent steps west from (3, 3) to (2, 3). Toward (3, 3) the metal worker at (3, 1) steps S; toward
+    # (2, 3), W and S tie at distance 2 and W comes first
+    text = """
+    #######
+    #X.m..#
+    #.....#
+    #.....#
+    #.....#
+    #....w#
+    #######
+    """
+    env = factory(shaping=1.0, directed_moves=rule)
+    world = world_from_map(env, text, agent=(3, 3))
+    env.step(WEST)
+    assert tuple(world["agent"]) == (2, 3)
+    assert cells(world, Code.METAL_WORKER) == [expected]
+
+
+def test_cooperative_workers_sit_on_the_agents_cell_far_less_under_the_original_rule():
+    """What the rule changes for a random policy (docs/fidelity.md): at strength 1 a worker ends a third of the
+    steps on the agent's cell (where it blocks a drop) aiming at the cell the agent left, nearly every step
+    aiming at the cell it moved to.
+    """
+    under = {}
+    for rule in ("original", "current-free"):
+        env = gridtasks.FactoryEnv(reset_free=True, shaping=1.0, directed_moves=rule)
+        env.reset(seed=0)
+        rng = np.random.default_rng(0)
+        w = env.unwrapped.world
+        hits = 0
+        for _ in range(2000):
+            env.step(int(rng.integers(7)))
+            hits += int(w["grid"][w["agent"][1], w["agent"][0]] in (Code.METAL_WORKER, Code.WOOD_WORKER))
+        under[rule] = hits / 2000
+    assert under["current-free"] > 0.9 and under["original"] < 0.4, under
 
 
 def test_cooperative_step_rate_is_the_shaping_strength():
@@ -511,3 +564,12 @@ def test_a_dead_predator_is_not_drawn():
     np.testing.assert_array_equal(render_world(world, rules), one)
     world["pred_age"][1] = 0
     assert not np.array_equal(render_world(world, rules), one) and not np.array_equal(one, both)
+
+
+def test_easy_deer_shaping_without_a_deer_speed_warns_that_it_changes_nothing():
+    with pytest.warns(UserWarning, match="changes nothing while deer_speed is 0"):
+        gridtasks.HuntingEnv(shaping=1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        gridtasks.HuntingEnv(shaping=1.0, deer_speed=0.2)
+        gridtasks.HuntingEnv(shaping=1.0, shaping_mechanism="nearby")

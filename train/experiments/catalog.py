@@ -39,6 +39,7 @@ from train.experiments.choices import (
     SHIPPED_RULES,
     SPARSE_EQUIVALENT,
     TUNED,
+    shipped_rules,
 )
 from train.experiments.conditions import (
     FLAT_LADDER,
@@ -64,8 +65,9 @@ __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "
 def job_config(experiment: Experiment, task: str, condition: Condition, budget: Budget) -> TrainConfig:
     """The full `TrainConfig` of one condition of one task at ``budget``."""
     flat: dict[str, Any] = {"task": task, **TUNED.get(task, {}), **condition.overrides}
-    if task in SHIPPED_RULES:
-        flat["env_kwargs"] = {**SHIPPED_RULES[task], **flat.get("env_kwargs", {})}
+    kept = shipped_rules(task, flat)
+    if kept:
+        flat["env_kwargs"] = {**kept, **flat.get("env_kwargs", {})}
     flat.update(budget.overrides)
     flat.update(budget.task_overrides.get(task, {}))
     steps = budget.steps_for(task)

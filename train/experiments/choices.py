@@ -22,9 +22,11 @@ Every experiment of `train.experiments.catalog` builds on them:
   3e-4, chosen as the paper chose it, by a learning-rate sweep (the released salad script sweeps 1e-5 ... 1e-3;
   every other released script fixes 1e-4). The sweep is the ``settings`` experiment; its evidence is in
   docs/fidelity.md ("Trainer settings").
-* task parameters kept as shipped (`SHIPPED_RULES`): scavenging's predators are reborn off the agent's cell
-  (``predator_respawn="off-agent"``) in every experiment, the rule its shipped runs trained with, though the
-  environment's default is now the original's; so re-running an experiment re-runs what is shipped.
+* task parameters kept as shipped (`SHIPPED_RULES`, `shipped_rules`): scavenging's predators are reborn off the
+  agent's cell (``predator_respawn="off-agent"``) in every experiment, and hunting's and factory's directed steps
+  aim at the agent's cell after its move (``directed_moves="current-free"``) in every condition whose creatures
+  take them, the rules the shipped runs trained with, though the environments' defaults are now the original's;
+  so re-running an experiment re-runs what is shipped.
 * evaluation horizon: left to the trainer, which takes each task's test horizon from its test MDP
   (``test_mdp_kwargs()``), whatever the training horizon.
 """
@@ -32,11 +34,13 @@ Every experiment of `train.experiments.catalog` builds on them:
 from __future__ import annotations
 
 from types import MappingProxyType
+from typing import Any
 
+from ecology import parse_schedule
 from train.tasks import TASKS
 
 __all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE",
-           "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED"]
+           "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED", "shipped_rules"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -65,12 +69,32 @@ TUNED = MappingProxyType({"salad": MappingProxyType({"lr": 3e-4})})
 code's); a condition's own overrides still win. Salad's learning rate is the best of the settings study's
 sweep (10 seeds x 500 000 steps per rate; docs/fidelity.md)."""
 
-SHIPPED_RULES = MappingProxyType({"scavenging": MappingProxyType({"predator_respawn": "off-agent"})})
-"""Task parameters every experiment sets (under a condition's own ``env_kwargs``) to keep a rule its shipped runs
-trained with where the environment's default has since become the original code's: scavenging's predators reborn
-at once off the agent's cell (the original's, one per step and possibly on the agent, is the default since
-2026-12-06; a random policy is caught on 4 569 steps per 20 000 under the kept rule, 4 882 under the original's,
-docs/fidelity.md)."""
+SHIPPED_RULES = MappingProxyType({
+    "scavenging": MappingProxyType({"predator_respawn": "off-agent"}),
+    "hunting": MappingProxyType({"directed_moves": "current-free"}),
+    "factory": MappingProxyType({"directed_moves": "current-free"}),
+})
+"""Task parameters the experiments set (under a condition's own ``env_kwargs``; `shipped_rules` says where) to keep
+a rule their shipped runs trained with where the environment's default has since become the original code's:
+scavenging's predators reborn at once off the agent's cell (the original's, one per step and possibly on the agent,
+is the default since 2026-12-06; a random policy is caught on 4 569 steps per 20 000 under the kept rule, 4 882
+under the original's), and hunting's and factory's directed steps aimed at the agent's cell after its move, among
+free cells only (the original's aim at the cell it left, and a blocked best step is not taken, the default since
+2026-12-07; docs/fidelity.md gives both rules' random-policy numbers)."""
+
+def shipped_rules(task: str, settings: dict[str, Any]) -> dict[str, Any]:
+    """The `SHIPPED_RULES` a condition of ``task`` with these flat settings keeps: scavenging's always, the
+    directed-step rule only where creatures take directed steps (hunting's deer with ``deer_speed`` > 0, factory's
+    workers under shaping), so that every other condition keeps the very config its shipped runs have.
+    """
+    rules = dict(SHIPPED_RULES.get(task, {}))
+    env_kwargs = settings.get("env_kwargs", {})
+    directed = {"hunting": lambda: env_kwargs.get("deer_speed", 0.0) > 0,
+                "factory": lambda: not parse_schedule(settings.get("shaping", 0.0)).is_zero}
+    if task in directed and not directed[task]():
+        rules.pop("directed_moves")
+    return rules
+
 
 SHAPING_BASE = MappingProxyType({
     "salad": {"dynamism": 0.05}, "walled-salad": {"dynamism": 0.05},

@@ -19,7 +19,10 @@ then ``scavenging-released-fig4`` and ``walls-released`` the same way.
 When ecorl's scavenging took the original code's predator respawn as its default, the 42 scavenging jobs of
 ``dynamism``, ``shaping``, ``scavenging-released`` and ``scavenging-released-fig4`` gained ``predator_respawn:
 off-agent`` in their ``env_kwargs`` (`SHIPPED_RULES`, the rule their shipped runs trained with), checked to be the
-only change, and were dumped again.
+only change, and were dumped again. When hunting's and factory's directed steps took the original code's rule as
+their default, the 30 jobs whose creatures take such steps (``shaping``'s five hunting arms, its two factory
+env-shaping arms, ``rnd``'s factory env-shaping arm and ``factory-make-axe``'s two env-shaping arms, at three
+budgets) gained ``directed_moves: current-free`` the same way.
 """
 
 from __future__ import annotations

@@ -122,7 +122,7 @@ def test_shaping_conditions_follow_the_paper():
             assert ("shaping" in c.overrides) == c.name.startswith("env-shaping")
     hunting = exp.conditions["hunting"][0]
     cfg = job_config(exp, "hunting", hunting, exp.budget("paper"))
-    assert cfg.env.env_kwargs == {"deer_kind": "hard", "deer_speed": 0.2}
+    assert cfg.env.env_kwargs == {"deer_kind": "hard", "deer_speed": 0.2, "directed_moves": "current-free"}
     assert cfg.env.shaping == SHAPING_SCHEDULE["hunting"]
     assert {c.overrides["dynamism"] for c in exp.conditions["salad"]} == {0.05}
 
@@ -460,16 +460,22 @@ def test_walls_released_is_walls_with_the_released_network():
         assert released == shipped.replace(inventory_repeat=8)
 
 
-def test_every_experiment_keeps_scavenging_predators_reborn_off_the_agent_as_its_shipped_runs_trained():
-    """`SHIPPED_RULES`: the env's default is the original's respawn; the experiments keep the shipped rule, a
-    condition's own env_kwargs beside it, and only on scavenging.
+def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_they_act():
+    """`SHIPPED_RULES`: the envs' defaults are the original's predator respawn and directed steps; the experiments
+    keep the shipped rules, a condition's own env_kwargs beside them: the respawn on every scavenging condition,
+    the directed steps exactly where creatures take them (hunting's deer with a speed, factory's shaped workers).
     """
+    from ecology import parse_schedule
+
     for exp in EXPERIMENTS.values():
         for task, conditions in exp.conditions.items():
             for c in conditions:
                 if c.measure:
                     continue
-                kwargs = job_config(exp, task, c, exp.budget("smoke")).env.env_kwargs
-                assert ("predator_respawn" in kwargs) == (task == "scavenging"), (exp.name, task, c.name)
-                if task == "scavenging":
-                    assert kwargs == {**c.overrides.get("env_kwargs", {}), "predator_respawn": "off-agent"}
+                cfg = job_config(exp, task, c, exp.budget("smoke"))
+                kwargs, own = cfg.env.env_kwargs, c.overrides.get("env_kwargs", {})
+                directed = (task == "hunting" and kwargs.get("deer_speed", 0.0) > 0) or (
+                    task == "factory" and not parse_schedule(cfg.env.shaping).is_zero)
+                kept = {"predator_respawn": "off-agent"} if task == "scavenging" else {}
+                kept |= {"directed_moves": "current-free"} if directed else {}
+                assert kwargs == {**own, **kept}, (exp.name, task, c.name)
