@@ -37,4 +37,6 @@ def warm_up() -> float:
 
 
 if __name__ == "__main__":
+    print("compiling the grid engine's numba kernels once, for every task (1-2 minutes on 2 cores; every later "
+          "process loads them from the cache) ...", flush=True)
     print(f"numba kernels compiled and cached in {warm_up():.0f} s")

@@ -59,6 +59,13 @@ class Speed:
         evaluations = cfg.num_epochs // cfg.eval_epochs + 1
         return total * margin + evaluations * self.evaluation_s
 
+    def seconds_left(self, cfg: TrainConfig, done: int, margin: float = MARGIN) -> float:
+        """Predicted seconds to take a job of ``cfg`` from step ``done`` (a resumed run) to its end."""
+        if done <= 0:
+            return self.run_seconds(cfg, margin)
+        trained = self.run_seconds(cfg.replace(steps=done), margin) - self.startup_s * margin
+        return max(self.run_seconds(cfg, margin) - trained, self.startup_s * margin)
+
 
 def _timed_epochs(cfg: TrainConfig, epochs: int, evaluate: bool = False) -> tuple[float, float, float]:
     """(seconds to the end of the first epoch, seconds per later epoch, seconds of one evaluation)."""
@@ -104,18 +111,20 @@ def measure_speed_together(config: dict[str, Any], copies: int) -> Speed:
     return Speed(*(max(getattr(s, f.name) for s in speeds) for f in fields(Speed)))
 
 
-def fit_steps(speed: Speed, config: dict[str, Any], jobs: int, workers: int, seconds: float) -> int:
+def fit_steps(speed: Speed, config: dict[str, Any], jobs: int, workers: int, seconds: float, done: int = 0) -> int:
     """The most steps per seed (a multiple of the evaluation interval, at most the configuration's own) that
-    ``jobs`` runs of ``config``, ``workers`` at a time, finish in ``seconds``; at least `MIN_EVALUATIONS`
-    intervals, even where that is more than the time or the configuration's own steps allow.
+    ``jobs`` runs of ``config``, ``workers`` at a time, finish in ``seconds``, where they resume at step ``done``;
+    at least `MIN_EVALUATIONS` intervals and ``done``, even where that is more than the time or the
+    configuration's own steps allow.
     """
     cfg = TrainConfig.from_dict(config)
     waves = math.ceil(jobs / max(1, min(workers, jobs)))
     every = cfg.eval.eval_every
-    low, high = MIN_EVALUATIONS, max(MIN_EVALUATIONS, cfg.run.steps // every)
+    low = max(MIN_EVALUATIONS, math.ceil(done / every))
+    high = max(low, cfg.run.steps // every)
     while low < high:  # the largest multiple whose predicted time fits
         mid = (low + high + 1) // 2
-        if waves * speed.run_seconds(cfg.replace(steps=mid * every)) <= seconds:
+        if waves * speed.seconds_left(cfg.replace(steps=mid * every), done) <= seconds:
             low = mid
         else:
             high = mid - 1
@@ -151,9 +160,12 @@ def timebox(jobs: list, seconds_left: float, workers: int, say, asked_seconds: f
     speed = measure_speed_together(jobs[0].config, min(workers, len(jobs)))
     cfg = TrainConfig.from_dict(jobs[0].config)
     left = seconds_left - (time.perf_counter() - began) - REPORT_RESERVE_S
-    steps = fit_steps(speed, jobs[0].config, len(jobs), workers, left)
+    done = min(_done_step(job) for job in jobs)
+    if done:
+        say(f"resuming: the runs stand at step {done:,} or later, and go on from there")
+    steps = fit_steps(speed, jobs[0].config, len(jobs), workers, left, done)
     waves = math.ceil(len(jobs) / max(1, min(workers, len(jobs))))
-    predicted = waves * speed.run_seconds(cfg.replace(steps=steps), margin=1.0)
+    predicted = waves * speed.seconds_left(cfg.replace(steps=steps), done, margin=1.0)
     say(f"speed: {speed.describe(cfg)}; {len(jobs)} runs, {min(workers, len(jobs))} at a time, in "
         f"{max(left, 0) / 60:.1f} min: {steps:,} steps per seed (predicted {predicted / 60:.1f} min, sized with a "
         f"{MARGIN - 1:.0%} margin; the budget's own: {cfg.run.steps:,})")
@@ -204,12 +216,17 @@ def kind_labels(kinds: list[tuple[tuple[str, str], ...]]) -> list[str]:
     return labels
 
 
-def _left(job, total_steps: int) -> float:
-    """The share of a job's ``total_steps`` still to train (its heartbeat's step, where it ran before)."""
+def _done_step(job) -> int:
+    """The step a job's run stands at (its heartbeat's, where it ran before; 0 for a fresh one)."""
     from train.loop.runlog import PROGRESS_FILE, read_heartbeat
 
     beat = read_heartbeat(Path(job.run_dir) / PROGRESS_FILE)
-    return 1.0 if beat is None else max(0.0, 1.0 - int(beat["step"]) / total_steps)
+    return 0 if beat is None else int(beat["step"])
+
+
+def _left(job, total_steps: int) -> float:
+    """The share of a job's ``total_steps`` still to train (its heartbeat's step, where it ran before)."""
+    return max(0.0, 1.0 - _done_step(job) / total_steps)
 
 
 def estimate(jobs: list, workers: int, say, measure=measure_speed_together) -> float:

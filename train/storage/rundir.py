@@ -172,6 +172,9 @@ class RunDir:
         """The verified checkpoint (only the arrays in ``keys`` when given, at most ``limit`` bytes of them);
         `RunDirError` if unusable.
         """
+        if not self.path.exists():
+            raise RunDirError(f"there is no run at {self.path}: nothing to resume (give the run's directory with "
+                              f"--out, or train without --resume)")
         if not self.has_checkpoint() and self.never_started():
             raise RunDirError(self._no_checkpoint_message())
         if not self.has_checkpoint():

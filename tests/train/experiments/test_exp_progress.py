@@ -88,6 +88,11 @@ def test_fit_steps_sizes_runs_to_the_time_budget():
     assert speed.run_seconds(cfg.replace(steps=short)) <= 200 < speed.run_seconds(cfg.replace(steps=short + 10_000))
     resized = resize_jobs(jobs, short)
     assert all(TrainConfig.from_dict(j.config).run.steps == short for j in resized)
+    # runs resumed at `short` steps: the time left buys more steps than from scratch, never fewer than done
+    resumed = fit_steps(speed, config, 2, 2, 200, done=short)
+    assert short < resumed <= 100_000
+    assert speed.seconds_left(cfg.replace(steps=resumed), short) <= 200 < speed.run_seconds(cfg.replace(steps=resumed))
+    assert fit_steps(speed, config, 2, 2, 0, done=short) == short  # no time left: stay where they stand
 
 
 def test_run_with_minutes_measures_the_machine_and_sizes_the_runs(tmp_path, capsys):

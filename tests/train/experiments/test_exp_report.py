@@ -383,3 +383,10 @@ def test_an_experiment_report_names_its_conditions_not_evaluated_yet(tmp_path):
     line = ("Not evaluated yet, so not shown: salad/dynamic-episodic, salad/static-reset-free; re-run the same "
             "command to train them.")  # not dynamic-reset-free: never started, perhaps never asked for
     assert line in (root / "report.md").read_text() and line in (root / "index.html").read_text()
+
+
+def test_a_curve_of_one_evaluation_is_drawn_as_a_point():
+    from train.experiments.report.figures import point_marker
+
+    assert point_marker(np.array([5_000])) == "o"  # a line through one point would draw nothing
+    assert point_marker(np.array([5_000, 10_000])) is None

@@ -181,7 +181,7 @@ def plot_collapse(exp: ExperimentResults, out: Path) -> Path | None:
             color = color_of[run.condition]
             mean, low, high = bootstrap_ci(np.nan_to_num(run.top_share, nan=0.0))
             ax.plot(run.steps, run.top_share[:, :MAX_SEED_LINES], color=color, lw=0.5, alpha=0.35)
-            ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
+            ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label, marker=point_marker(run.steps))
             ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
         ax.axhline(COLLAPSE_SHARE, color="gray", ls="--", lw=1.0)
         ax.set_title(title)
@@ -221,13 +221,18 @@ def curve_panels(exp: ExperimentResults) -> list[tuple[str, str, list[Run]]]:
     return panels
 
 
+def point_marker(steps) -> str | None:
+    """A marker for a curve of one evaluation (a line through one point draws nothing), else none."""
+    return "o" if len(steps) < 2 else None
+
+
 def _draw_run(ax, run: Run, color: str, paper: dict, reference: ExperimentResults | None) -> tuple[Any, bool]:
     """One condition in a panel: each seed thin, the mean and its CI, the reference's mean dashed, the paper's
     value dotted; returns the mean's line and whether the paper's value was drawn.
     """
     mean, low, high = bootstrap_ci(run.values)
     ax.plot(run.steps, run.values[:, :MAX_SEED_LINES], color=color, lw=0.5, alpha=0.35)  # each seed: bimodality
-    (line,) = ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label)
+    (line,) = ax.plot(run.steps, mean, color=color, lw=1.6, label=run.label, marker=point_marker(run.steps))
     ax.fill_between(run.steps, low, high, color=color, alpha=0.2, lw=0)
     for old in (reference.runs if reference else []):
         if old.task == run.task and old.condition == run.condition:
@@ -325,7 +330,7 @@ def plot_seed_curves(exp: ExperimentResults, out: Path) -> Path | None:
     scale = 100.0 if run.metric == "success" else 1.0
     for k in range(run.seeds):
         last = run.values[-1, k] * scale
-        ax.plot(run.steps, run.values[:, k], color=cmap(k % 10), lw=1.0, alpha=0.8,
+        ax.plot(run.steps, run.values[:, k], color=cmap(k % 10), lw=1.0, alpha=0.8, marker=point_marker(run.steps),
                 label=f"seed {first + k}: {last:.0f}{'%' if run.metric == 'success' else ''} at the end")
     ax.plot(run.steps, run.values.mean(1), color=condition_color(run.condition), lw=2.4, label="mean over seeds")
     _style_panel(ax, run.task, run.metric, own_legend=False)
