@@ -114,7 +114,7 @@ def table(finished: Path, root: Path) -> list[tuple[str, list[str], str]]:
     cases = [
         ("warm-up takes every step", ["train", "salad", "--steps", "1000", "--warmup-steps", "2000", "--out",
                                       str(root / "w")], "--warmup-steps (2000) must be below steps (1000)"),
-        ("memory of every per-seed buffer", ["train", "salad", "--seeds", "1000000", "--buffer-size", "2", "--out",
+        ("memory of every per-seed buffer", ["train", "salad", "--seeds", "1000000", "--buffer-size", "64", "--out",
                                              str(root / "m")], "use fewer --seeds"),
         ("fifo checkpoint", ["train", "salad", "--resume", "--out", str(runs["fifo checkpoint"])], "FIFO"),
         ("/dev/zero checkpoint", ["train", "salad", "--resume", "--out", str(runs["dev zero checkpoint"])],

@@ -118,6 +118,7 @@ def test_a_deleted_metrics_file_is_rebuilt_from_the_checkpoint(finished, capsys)
 BAD_INPUTS = [
     (["--steps", "0"], "steps must be an integer >= 1, got 0"),
     (["--steps", "-5"], "steps must be an integer >= 1, got -5"),
+    (["--buffer-size", "32"], "buffer-size (32) must be at least the batch size (64)"),
     (["--eval-every", "0"], "--eval-every must be an integer >= 1, got 0"),
     (["--lr", "nan"], "lr must be a finite number in (0, 1], got nan"),
     (["--lr", "inf"], "lr must be a finite number in (0, 1], got inf"),

@@ -140,6 +140,9 @@ class DQNConfig:
         check_number("gamma", self.gamma, 0.0, 1.0)
         check_int("batch_size", self.batch_size)
         check_int("buffer_size", self.buffer_size, 2)
+        if self.buffer_size < self.batch_size:  # a minibatch would repeat a few transitions (or find none whole)
+            raise ValueError(f"buffer_size ({self.buffer_size}) must be at least the batch size ({self.batch_size}); "
+                             f"give --buffer-size {self.batch_size} or more, or a smaller --batch-size")
         check_number("tau", self.tau, 0.0, 1.0, low_open=True)
         check_number("grad_clip", self.grad_clip, 0.0, low_open=True)
         check_number("eps_start", self.eps_start, 0.0, 1.0)
