@@ -93,7 +93,7 @@ class Schedule:
 def schedule_value(breakpoints: np.ndarray, t: float) -> float:
     """Evaluate a (K, 2) breakpoint array at step ``t`` (plain Python/numba-compatible arithmetic)."""
     k = breakpoints.shape[0]
-    if t <= breakpoints[0, 0]:
+    if t < breakpoints[0, 0]:
         return breakpoints[0, 1]
     for i in range(k - 1):
         t0, v0 = breakpoints[i, 0], breakpoints[i, 1]

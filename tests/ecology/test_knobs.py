@@ -22,6 +22,7 @@ def test_defaults_are_the_test_mdp():
         ("linear:1:0:280000", [(0, 1.0), (140_000, 0.5), (280_000, 0.0), (10**7, 0.0)]),
         ("linear:0:1:100", [(0, 0.0), (25, 0.25), (100, 1.0)]),
         ("step:1:100:0.5:200:0", [(0, 1.0), (99, 1.0), (100, 0.5), (199, 0.5), (200, 0.0), (1000, 0.0)]),
+        ("step:1:0:0.5", [(0, 0.5), (10, 0.5)]),  # a step at 0: the new value from the first step on
     ],
 )
 def test_schedules_parse_and_evaluate(text, expected):
