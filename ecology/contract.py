@@ -132,6 +132,17 @@ def render_mode_missing(render_mode: str | None) -> bool:
     return True
 
 
+def can_render(render_mode: str | None, laid_out: bool) -> bool:
+    """Whether an env can draw a frame: False, with Gymnasium's warning, without a render mode; an error before
+    its first reset (``laid_out`` False), when there is no world to draw yet.
+    """
+    if render_mode_missing(render_mode):
+        return False
+    if not laid_out:
+        raise RuntimeError("call reset() before render(): no world has been laid out yet")
+    return True
+
+
 def check_render_mode(render_mode: str | None, modes: Sequence[str]) -> str | None:
     """Return ``render_mode``, or raise ValueError unless it is None or one of ``modes``."""
     if render_mode is not None and render_mode not in modes:

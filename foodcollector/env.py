@@ -12,10 +12,10 @@ from gymnasium import spaces
 from ecology import (
     Ecology,
     VisitGrid,
+    can_render,
     check_action,
     check_render_mode,
     make_test_mdp_kwargs,
-    render_mode_missing,
     schedule_value,
 )
 from foodcollector.arena import RAY_VALUES, Arena
@@ -169,6 +169,7 @@ class FoodCollectorEnv(gym.Env):
         self._green_eaten = 0
         self._red_eaten = 0
         self._needs_reset = True
+        self._laid_out = False  # no frame before the first reset: nothing is placed yet
         self._ray_values = np.zeros(RAY_OBS, dtype=np.float32)
 
     def _make_observation_space(self) -> spaces.Box:
@@ -185,6 +186,7 @@ class FoodCollectorEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Place the agent and every sphere anew; a seed also restarts the lifetime counter."""
         super().reset(seed=seed)
+        self._laid_out = True
         if seed is not None:  # a new life: a fresh physics space too, so that a seeded reset is a pure
             self._lifetime_step = 0  # function of the seed (pymunk warm-starts from its contact cache)
             self.arena = Arena(self.params, self.spheres.green, moving=self.spheres.speed > 0)
@@ -218,7 +220,7 @@ class FoodCollectorEnv(gym.Env):
 
     def render(self) -> np.ndarray | None:
         """A top-down RGB frame (``render_mode="rgb_array"``), or None with a warning otherwise."""
-        if render_mode_missing(self.render_mode):
+        if not can_render(self.render_mode, self._laid_out):
             return None
         return self.frame()
 
@@ -337,6 +339,7 @@ class FoodCollectorEnv(gym.Env):
         self._lifetime_step, self._episode_step = int(state["lifetime_step"]), int(state["episode_step"])
         self._green_eaten, self._red_eaten = int(state["green_eaten"]), int(state["red_eaten"])
         self._needs_reset = bool(state["needs_reset"])
+        self._laid_out = True
         self._ray_values = np.asarray(state["ray_values"], dtype=np.float32).copy()
         self.spheres.pos[:], self.spheres.vel[:] = pos, vel
         self.arena = Arena(self.params, self.spheres.green, moving=self.spheres.speed > 0)

@@ -18,10 +18,10 @@ from gymnasium import spaces
 from ecology import (
     Ecology,
     VisitGrid,
+    can_render,
     check_action,
     check_render_mode,
     make_test_mdp_kwargs,
-    render_mode_missing,
 )
 from gridtasks import engine
 from gridtasks.batch import (  # noqa: F401 (check_* are re-exported for the task modules)
@@ -102,17 +102,6 @@ class DirectedMoves(EpisodeRules):
         r["blocked_directed_stays"] = original
         for code in aim_before_move:
             r["aim_before_move"][code] = original
-
-
-def can_render(render_mode: str | None, seeded: bool) -> bool:
-    """Whether an env can draw a frame: False, with Gymnasium's warning, without a render mode; an error before
-    its first reset.
-    """
-    if render_mode_missing(render_mode):
-        return False
-    if not seeded:
-        raise RuntimeError("call reset() before render(): no world has been laid out yet")
-    return True
 
 
 class GridTaskEnv(gym.Env):

@@ -9,7 +9,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ecology import Ecology, check_autoreset_mode, check_reset_mask
+from ecology import Ecology, can_render, check_autoreset_mode, check_reset_mask
 from gridtasks import engine
 from gridtasks.batch import (
     StepBuffers,
@@ -22,7 +22,7 @@ from gridtasks.batch import (
     world_key,
 )
 from gridtasks.codes import NAMES
-from gridtasks.env import GridTaskEnv, can_render
+from gridtasks.env import GridTaskEnv
 
 
 def _is_int(value) -> bool:

@@ -177,6 +177,14 @@ def test_render_rgb_array(make_env):
     assert env.unwrapped.frame(size=128).shape == (128, 128, 3)
 
 
+def test_render_before_the_first_reset_is_refused_as_the_grid_tasks_do():
+    env = foodcollector.FoodCollectorEnv(render_mode="rgb_array")  # no OrderEnforcing wrapper: the env's own check
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.render()
+    env.reset(seed=0)
+    assert env.render().shape == (512, 512, 3)
+
+
 def test_render_without_mode_warns_and_returns_none(make_env):
     env = make_env().unwrapped
     with pytest.warns(UserWarning, match="render_mode"):
