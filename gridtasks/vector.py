@@ -192,16 +192,19 @@ class GridTaskVectorEnv(VectorEnv):
         return array.copy() if self.copy else array
 
     def _info(self, solved: np.ndarray | None = None, caught: np.ndarray | None = None) -> dict:
-        """The batched info of every world's current state; ``solved`` and ``caught`` default to the last step's."""
+        """The batched info of every world's current state, with Gymnasium's ``_key`` masks (every world reports
+        every key); ``solved`` and ``caught`` default to the last step's.
+        """
         s = self._state
         products = list(self.template.products)
         solved = self.last_solved if solved is None else solved
         caught = self.last_caught if caught is None else caught
-        return {"solved": solved, "caught": caught, "agent_pos": s["agent"].astype(np.int64),
+        info = {"solved": solved, "caught": caught, "agent_pos": s["agent"].astype(np.int64),
                 "lifetime_step": s["lifetime_step"].copy(), "completions": s["completions"].copy(),
                 **{f"pickup_{NAMES[code]}": s["pickups"][:, code].copy() for code in self.template.counted},
                 **{f"made_{NAMES[code]}": s["made"][:, code].copy() for code in products},
                 "made": s["made"][:, products].sum(1)}  # beyond the single env's keys: every product, as logged
+        return info | {f"_{key}": np.ones(self.num_envs, dtype=np.bool_) for key in info}
 
     def render(self):
         """A tuple with one RGB frame per world, or None without a render mode."""
@@ -218,6 +221,8 @@ def _masked(info: dict, mask: np.ndarray) -> dict:
     """
     out = {}
     for key, value in info.items():
+        if key.startswith("_"):  # the masks: this one's is ``mask``
+            continue
         out[key] = np.where(mask.reshape(-1, *[1] * (value.ndim - 1)), value, 0).astype(value.dtype)
         out[f"_{key}"] = mask.copy()
     return out

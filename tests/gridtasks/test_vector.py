@@ -110,8 +110,11 @@ def test_every_vector_mode_gives_the_single_envs_info_keys_stacked(env_id):
     single = gym.make(env_id).reset(seed=0)[1]
     _, batched = gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point").reset(seed=0)
     _, synced = gym.make_vec(env_id, num_envs=3, vectorization_mode="sync").reset(seed=0)
-    assert set(batched) == set(single) | {"made"}  # plus the total of every product, as the trainer logs
+    assert set(batched) == set(synced) | {"made", "_made"}  # plus the total of every product, as the trainer logs
     assert set(single) == {key for key in synced if not key.startswith("_")}
+    for key in synced:
+        if key.startswith("_"):  # Gymnasium's masks: which worlds reported the key (all of them, each step)
+            np.testing.assert_array_equal(batched[key], synced[key])
     for info in (batched, synced):
         assert info["agent_pos"].shape == (3, 2) and info["agent_pos"].dtype == np.int64
     np.testing.assert_array_equal(batched["agent_pos"], synced["agent_pos"])
