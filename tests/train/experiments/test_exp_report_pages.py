@@ -37,6 +37,9 @@ def test_report_of_a_single_train_run(tmp_path, capsys):
     videos = list((out / "figures" / "videos").glob("*.mp4"))
     assert len(videos) == 1 and b"avc1" in videos[0].read_bytes()[:4096]  # H.264, which browsers play
     assert videos[0].with_suffix(".png").exists()  # its poster: the middle frame
+    head = videos[0].read_bytes()[:65536]
+    profile = head[head.find(b"avcC") + 5:head.find(b"avcC") + 8].hex().upper()  # the encoder's, e.g. 640015
+    assert f"codecs=&quot;avc1.{profile}&quot;" in page  # the page names the codec the file holds
     assert "seed " in page and "(the best)" in page and "episode(s) filmed" in page
     assert str(tmp_path) not in page and str(tmp_path) not in (out / "report.md").read_text()
 

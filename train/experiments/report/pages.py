@@ -64,7 +64,14 @@ from train.experiments.report.tables import (
     milestone_columns,
     milestone_rows,
 )
-from train.experiments.report.webvideo import WebVideo, caption_of, find_videos, render_missing_videos, web_copy
+from train.experiments.report.webvideo import (
+    WebVideo,
+    caption_of,
+    find_videos,
+    h264_codec,
+    render_missing_videos,
+    web_copy,
+)
 from train.storage.fileio import atomic_text
 from train.storage.rundir import EXPERIMENT_FILE
 from train.storage.safeio import no_link_below
@@ -308,8 +315,10 @@ def _video_tag(out: Path, video: WebVideo) -> str:
     """A captioned H.264 <video> whose poster is its middle frame, and its filmstrip if it has one."""
     src = html.escape(video.mp4.relative_to(out).as_posix())
     poster = html.escape(video.poster.relative_to(out).as_posix())
+    codec = h264_codec(video.mp4)  # the encoder's profile and level (a browser skips a source it thinks it cannot play)
+    kind = f"video/mp4; codecs=&quot;{codec}&quot;" if codec else "video/mp4"
     tag = (f"<figure><video controls loop muted preload='metadata' poster='{poster}'>"
-           f"<source src='{src}' type='video/mp4; codecs=\"avc1.42E01E\"'></video>"
+           f"<source src='{src}' type='{kind}'></video>"
            f"<figcaption>{html.escape(video.caption)} (<a href='{src}'>mp4</a>)</figcaption></figure>")
     if video.strip is None:
         return tag

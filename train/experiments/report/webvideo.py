@@ -116,6 +116,18 @@ class WebVideo:
     """A copy of the filmstrip beside the source video, if it has one."""
 
 
+def h264_codec(mp4: Path) -> str | None:
+    """The RFC 6381 codecs string of an H.264 MP4 (``avc1.PPCCLL``: profile, constraints and level, read from its
+    ``avcC`` box near the start, where a fast-start file keeps it), or None where there is none to read.
+    """
+    with open(mp4, "rb") as f:
+        head = f.read(1 << 16)
+    at = head.find(b"avcC")
+    if at < 0 or len(head) < at + 8:
+        return None
+    return "avc1." + head[at + 5:at + 8].hex().upper()
+
+
 def caption_of(video: Path, root: Path) -> str:
     """Where the video comes from and, from its sidecar, the seed filmed and how its episodes went."""
     where = video.parent.relative_to(root).as_posix() if video.name == "video.mp4" else video.name
