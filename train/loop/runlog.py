@@ -23,8 +23,10 @@ from train.storage.safeio import real_dir
 
 
 def postfix(rows: list[dict[str, Any]], num_agents: int) -> dict[str, str]:
-    """Progress-bar summary of the latest evaluation: aggregate steps/s and mean metric over seeds."""
-    out = {"sps": f"{rows[0]['steps_per_s'] * num_agents:.0f}"}
+    """Progress-bar summary of the latest evaluation: steps/s of all seeds together and mean metric over seeds
+    (the bar's own rate counts the steps of one seed).
+    """
+    out = {"all seeds step/s": f"{rows[0]['steps_per_s'] * num_agents:.0f}"}
     success = [r["success"] for r in rows]
     if not any(math.isnan(s) for s in success):
         out["success"] = f"{np.mean(success):.2f}"
@@ -115,8 +117,8 @@ def progress_bar(cfg: TrainConfig, initial: int, conditions: int = 1):
     from tqdm import tqdm
 
     what = f"{cfg.env.task} x{cfg.run.seeds}" if conditions == 1 else f"{cfg.env.task}: {conditions} conditions"
-    bar = tqdm(total=cfg.total_steps, initial=initial, unit="step", disable=not cfg.run.progress,
-               desc=what, dynamic_ncols=True)
+    bar = tqdm(total=cfg.total_steps, initial=initial, unit="step", desc=f"{what}, steps per seed",
+               disable=not cfg.run.progress, dynamic_ncols=True)
     if _heartbeat_paths:
         bar = Heartbeat(bar, _heartbeat_paths, cfg.total_steps, initial)
     try:
