@@ -80,6 +80,14 @@ def test_report_of_a_directory_that_is_neither_says_what_it_takes(tmp_path, caps
     assert main(["report", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "neither an experiment's results" in err and "ecorl train run directory" in err
+    # a folder of runs (or the repository's docs/): the runs deeper inside are named
+    for name in ("run-a", "run-b"):
+        (tmp_path / "runs" / name).mkdir(parents=True)
+        (tmp_path / "runs" / name / "config.json").write_text("{}")
+        (tmp_path / "runs" / name / "metrics.csv").write_text("")
+    assert main(["report", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert f"report one of those deeper inside it: {tmp_path / 'runs' / 'run-a'}, {tmp_path / 'runs' / 'run-b'}" in err
 
 
 def test_redrawing_a_shipped_result_is_byte_stable_and_leaves_it_alone(tmp_path):

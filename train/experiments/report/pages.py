@@ -311,6 +311,20 @@ def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Seq
     return atomic_text(out / "index.html", "\n".join(parts) + "\n")
 
 
+def reportable_below(source: Path, depth: int = 4) -> list[Path]:
+    """Folders under ``source`` (at most ``depth`` levels down, ``source`` itself and its children aside) that
+    `make_report` takes: an experiment's results or a train run; relative paths, sorted.
+    """
+    found = []
+    for level in range(2, depth + 1):
+        for path in sorted(source.glob("/".join(["*"] * level))):
+            if path.name == EXPERIMENT_FILE or (path.name == "config.json" and (path.parent / "metrics.csv").exists()):
+                parent = path.parent.relative_to(source)
+                if not any(parent.is_relative_to(f) for f in found):
+                    found.append(parent)
+    return found
+
+
 def _video_tag(out: Path, video: WebVideo) -> str:
     """A captioned H.264 <video> whose poster is its middle frame, and its filmstrip if it has one."""
     src = html.escape(video.mp4.relative_to(out).as_posix())
@@ -386,9 +400,13 @@ def make_report(root: str | Path, videos: bool | None = None, out: str | Path | 
         raise ReportError(stopped)
     sections = build_sections(source, target, videos)
     if not sections:
+        inside = reportable_below(source)
+        advice = (f"report one of those deeper inside it: {', '.join(str(Path(root) / p) for p in inside[:3])}"
+                  f"{' ...' if len(inside) > 3 else ''}" if inside else
+                  "give a directory written by `ecorl run EXPERIMENT --out DIR` or by `ecorl train`")
         raise ReportError(f"{root} is neither an experiment's results ({EXPERIMENT_FILE} not found in it or in "
-                          f"its subdirectories) nor an ecorl train run directory (config.json and metrics.csv); "
-                          f"give a directory written by `ecorl run EXPERIMENT --out DIR` or by `ecorl train`")
+                          f"the folders directly inside it) nor an ecorl train run directory (config.json and "
+                          f"metrics.csv); {advice}")
     leads = build_leads(lead_names([s.exp.name for s in sections], source), target, load_paper(),
                         [s.exp for s in sections])
     md = write_markdown(source, target, sections, leads)
