@@ -121,10 +121,10 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
                        lambda line: print(line, file=sys.stderr), asked_seconds=args.minutes * 60)
     train, copies = _twins(exp, jobs, args)
     if args.dry_run or args.estimate:
-        _print_dry_run(train, args)
+        status = _print_dry_run(train, args)
         for copy, original in copies:
             print(_copy_line(copy, original))
-        return 0
+        return status
     with user_errors(ValueError, OSError):
         write_experiment_file(exp, args.budget, jobs, args.out)
     where = args.out / exp.name
@@ -170,11 +170,13 @@ def _packing(args: argparse.Namespace) -> int:
     return 1 if gpu else (args.jobs or usable_cpus()) if args.pack else 0
 
 
-def _print_dry_run(jobs: list, args: argparse.Namespace) -> None:
-    """The plan, the packs it would train and, with --estimate, how long the runs not yet done take here."""
+def _print_dry_run(jobs: list, args: argparse.Namespace) -> int:
+    """The plan, the packs it would train and, with --estimate, how long the runs not yet done take here; returns
+    the exit status: 1 where a run will fail (its line says why), else 0.
+    """
     from train.experiments.sweep import print_packs, print_plan
 
-    print_plan(jobs)
+    failing = print_plan(jobs)
     if pack := _packing(args):
         print_packs(jobs, pack)
     if args.estimate:
@@ -187,6 +189,9 @@ def _print_dry_run(jobs: list, args: argparse.Namespace) -> None:
         if pack:
             print("(estimated for one run per process: packed, as this command would train them, they take less; "
                   "benchmarks/bench_paper.py times packs)")
+    if failing:
+        print(f"{failing} run(s) will fail as things stand: their lines say why and what to do", file=sys.stderr)
+    return 1 if failing else 0
 
 
 def _execute(jobs: list, args: argparse.Namespace, where: Path) -> list | None:
@@ -218,10 +223,10 @@ def _handle_many(args: argparse.Namespace, parser: argparse.ArgumentParser, name
     _check_out_and_device(args)
     train, copies = split_copies(jobs)
     if args.dry_run or args.estimate:
-        _print_dry_run(train, args)
+        status = _print_dry_run(train, args)
         for copy, original in copies:
             print(_copy_line(copy, original))
-        return 0
+        return status
     ran = sorted({job.experiment for job in jobs}, key=[e.name for e in exps].index)
     with user_errors(ValueError, OSError):
         for exp in exps:

@@ -131,6 +131,25 @@ def job_is_done(job: Job) -> bool:
     return True
 
 
+def foreign_files(run_dir: Path) -> list[str]:
+    """The files in a run directory that ecorl did not write (it never deletes them, so a run cannot start
+    there afresh), sorted; empty where there is no directory.
+    """
+    from train.storage.checkpoint import CHECKPOINT_NAME
+    from train.storage.rundir import LOCK_NAME
+
+    if not run_dir.is_dir():
+        return []
+    known = {*RESULT_FILES, *UNSTARTED_FILES, CHECKPOINT_NAME, LOCK_NAME}
+    return sorted(p.name for p in run_dir.iterdir() if p.name not in known and not is_temporary(p.name))
+
+
+def foreign_files_message(run_dir: Path, names: list[str]) -> str:
+    """Why a run cannot start afresh in ``run_dir``, which holds ``names`` (`foreign_files`), and what to do."""
+    return (f"{run_dir} holds files ecorl did not write ({', '.join(names)}), which it never deletes; move them "
+            f"away or choose another --out")
+
+
 def _clear_unstarted(job: Job) -> None:
     """Remove what a run stopped before its first checkpoint left (its config.json and temporaries); with
     ``job.restart`` also its results. Results without a checkpoint are otherwise kept and reported
@@ -144,10 +163,8 @@ def _clear_unstarted(job: Job) -> None:
         return
     clear = {*RESULT_FILES, CHECKPOINT_NAME} if job.restart else set(UNSTARTED_FILES)
     names = {p.name for p in run_dir.iterdir()} - {LOCK_NAME}
-    unknown = sorted(n for n in names - clear if not is_temporary(n) and n not in RESULT_FILES)
-    if unknown:
-        raise RunDirError(f"{run_dir} holds files ecorl did not write ({', '.join(unknown)}), which it never "
-                          f"deletes; move them away or choose another --out")
+    if unknown := foreign_files(run_dir):
+        raise RunDirError(foreign_files_message(run_dir, unknown))
     results = sorted(n for n in names - clear if n in RESULT_FILES)
     if results:
         raise FinishedWithoutCheckpoint(

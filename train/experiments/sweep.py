@@ -303,9 +303,12 @@ def plan_extras(cfg: TrainConfig) -> list[str]:
     return parts
 
 
-def print_plan(jobs: Sequence[Job], file=None) -> None:
-    """One line per job: its directory, seeds, steps and whether it is done."""
+def print_plan(jobs: Sequence[Job], file=None) -> int:
+    """One line per job: its directory, seeds, steps and whether it is done, or why it will fail; returns how
+    many will fail.
+    """
     file = file or sys.stdout
+    failing = 0
     for job in jobs:
         cfg = job.config
         if job.is_measurement:
@@ -319,10 +322,12 @@ def print_plan(jobs: Sequence[Job], file=None) -> None:
             what += "".join(f", {extra}" for extra in plan_extras(c))
             if c.run.first_seed:
                 what += f", seeds {c.run.first_seed}-{c.run.first_seed + c.run.seeds - 1}"
-        clash = "" if job.restart or job.is_measurement else settings_clash(job)
-        state = "restart" if job.restart else "clash" if clash else "done" if _safe_is_done(job) else (
+        clash = "" if job.is_measurement else settings_clash(job)
+        failing += bool(clash)
+        state = "clash" if clash else "restart" if job.restart else "done" if _safe_is_done(job) else (
             "resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists() else "new")
         print(f"[{state:>6s}] {job.name}: {what}{clash}", file=file)
+    return failing
 
 
 def print_packs(jobs: Sequence[Job], pack: int, file=None) -> None:
@@ -337,11 +342,17 @@ def print_packs(jobs: Sequence[Job], pack: int, file=None) -> None:
 
 
 def settings_clash(job: Job) -> str:
-    """Why a training job will fail on the run its directory already holds (other settings), or "" if it will not."""
+    """Why a training job will fail on what its directory already holds (a run of other settings, or files ecorl
+    did not write where it would start afresh), or "" if it will not.
+    """
+    from train.experiments.jobs import foreign_files, foreign_files_message
     from train.storage.rundir import RunDirError, check_same_run
 
-    saved = Path(job.run_dir) / "config.json"
-    if not saved.is_file():
+    run_dir = Path(job.run_dir)
+    if (job.restart or not (run_dir / CHECKPOINT_NAME).exists()) and (names := foreign_files(run_dir)):
+        return f"\n         will fail: {foreign_files_message(run_dir, names).removesuffix('.')}"
+    saved = run_dir / "config.json"
+    if job.restart or not saved.is_file():
         return ""
     asked = TrainConfig.from_dict(job.config)
     try:

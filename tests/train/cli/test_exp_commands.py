@@ -152,8 +152,10 @@ def test_one_experiment_copies_a_finished_run_of_another_with_the_same_settings(
     own = tmp_path / "episodic-vs-reset-free" / "salad" / "static-reset-free"
     own.mkdir(parents=True)
     (own / "notes.txt").write_text("mine")
-    assert cli.main(["run", "episodic-vs-reset-free", *one, "--dry-run"]) == 0
-    assert capsys.readouterr().out.startswith("[   new] episodic-vs-reset-free/salad/static-reset-free")
+    # a folder with the user's own file is not filled with a copy: planned as its own run, which cannot start there
+    assert cli.main(["run", "episodic-vs-reset-free", *one, "--dry-run"]) == 1
+    out = capsys.readouterr().out
+    assert out.startswith("[ clash] episodic-vs-reset-free/salad/static-reset-free") and "(notes.txt)" in out
 
 
 @pytest.mark.parametrize("bad", ["-1", "0", "nan", "inf"])
@@ -349,10 +351,26 @@ def test_dry_run_says_which_runs_clash_with_the_settings_asked_for(capsys, tmp_p
             str(tmp_path)]
     assert cli.main(args) == 0
     assert capsys.readouterr().out.startswith("[   new] headline/salad/static-episodic")
-    assert cli.main([*args, "--first-seed", "3"]) == 0
+    assert cli.main([*args, "--first-seed", "3"]) == 1  # a run that will fail: the dry run says so, and fails
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("[ clash] headline/salad/static-episodic")
     assert "first_seed: checkpoint has 0, you asked for 3" in out[1] and "--restart static-episodic" in out[1]
+
+
+def test_dry_run_says_a_folder_holding_foreign_files_will_fail(capsys, tmp_path):
+    """Planned as [new] before, and the run then failed: ecorl never deletes files it did not write."""
+    run_dir = tmp_path / "headline" / "salad" / "static-episodic"
+    run_dir.mkdir(parents=True)
+    (run_dir / "notes.txt").write_text("mine")
+    args = ["run", "headline", "--budget", "smoke", "--condition", "static-episodic", "--dry-run", "--out",
+            str(tmp_path)]
+    assert cli.main(args) == 1
+    captured = capsys.readouterr()
+    out = captured.out.splitlines()
+    assert out[0].startswith("[ clash] headline/salad/static-episodic")
+    assert "holds files ecorl did not write (notes.txt)" in out[1]
+    assert "1 run(s) will fail" in captured.err
+    assert cli.main([*args, "--restart", "static-episodic"]) == 1  # a restart deletes only what ecorl wrote
 
 
 def test_dry_run_says_a_stopped_run_past_the_steps_asked_for_will_fail(capsys, tmp_path):
@@ -362,7 +380,7 @@ def test_dry_run_says_a_stopped_run_past_the_steps_asked_for_will_fail(capsys, t
     assert cli.main([*args, "--steps", "2000"]) == 0
     (tmp_path / "headline" / "salad" / "static-episodic" / "done.json").unlink()  # as if stopped at its last epoch
     capsys.readouterr()
-    assert cli.main([*args, "--steps", "1000", "--dry-run"]) == 0
+    assert cli.main([*args, "--steps", "1000", "--dry-run"]) == 1
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("[ clash] headline/salad/static-episodic")
     assert "stands at step 2200, beyond the 1200 steps asked for" in out[1]
