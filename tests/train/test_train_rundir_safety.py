@@ -81,6 +81,15 @@ def test_resume_inherits_every_setting_and_may_grow_the_run(tmp_path, capsys):
     assert metrics_without_timing(run) == metrics_without_timing(reference)
 
 
+def test_a_fresh_run_in_a_folder_holding_one_of_other_settings_is_not_told_to_resume(finished, capsys):
+    # the default --out names the knobs, not e.g. --lr: --resume would refuse the new rate
+    assert _train(finished, "--lr", "0.001", "--seeds", "2") == 2
+    assert "holds a run made with other settings (lr: checkpoint has 0.0003, you asked for 0.001)" in \
+        _one_line_error(capsys)
+    assert _train(finished, "--lr", "0.0003", "--seeds", "2") == 2  # the same settings: resume it
+    assert "Pass --resume to continue the run it holds" in _one_line_error(capsys)
+
+
 def test_resume_takes_the_steps_the_run_was_made_with_though_they_round_up_to_an_epoch(tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["train", "salad", "--steps", "450", *TINY, "--out", str(run)]) == 0  # 450 ends at step 600

@@ -28,7 +28,7 @@ from train.loop.memory import checkpoint_limit
 from train.storage.checkpoint import CHECKPOINT_NAME, LEGACY_NAME, CheckpointError, legacy_message, read_checkpoint
 from train.storage.checkpoint import write_checkpoint as _write_checkpoint
 from train.storage.fileio import FileLock, LockedError, atomic_file, atomic_write, is_temporary
-from train.storage.safeio import UnsafeFileError, open_regular, read_npy, real_dir
+from train.storage.safeio import UnsafeFileError, load_json, open_regular, read_npy, real_dir
 
 __all__ = ["ADDED_COLUMNS", "METRIC_COLUMNS", "LOCK_NAME", "RunDir", "RunDirError", "atomic_file", "atomic_write",
            "check_same_run", "read_visits", "write_visits"]
@@ -142,12 +142,25 @@ class RunDir:
             self.lock()
             return
         if not self.is_empty():
-            raise RunDirError(f"run directory {self.path} is not empty. Pass --resume to continue the run "
-                              f"it holds, or choose another --out (or delete the directory) to start afresh.")
+            raise RunDirError(self._occupied_message(cfg))
         self.lock()
         if not self.is_empty():  # another process filled it between the check and the lock
             raise RunDirError(f"run directory {self.path} is not empty; choose another --out")
         self.write_config(cfg)
+
+    def _occupied_message(self, cfg: TrainConfig) -> str:
+        """Why a fresh run of ``cfg`` cannot start in this non-empty directory, and what to do: --resume only where
+        the run it holds was made with the settings asked for (the default --out names the knobs, not e.g. --lr).
+        """
+        try:
+            diffs = setting_differences(TrainConfig.from_dict(load_json(self.path / "config.json")), cfg)
+        except (OSError, UnsafeFileError, ValueError, TypeError, KeyError):
+            diffs = []
+        if diffs:
+            return (f"run directory {self.path} holds a run made with other settings ({'; '.join(diffs)}); choose "
+                    f"another --out for this one (or delete the directory)")
+        return (f"run directory {self.path} is not empty. Pass --resume to continue the run it holds, or choose "
+                f"another --out (or delete the directory) to start afresh.")
 
     def _no_checkpoint_message(self) -> str:
         """Why a directory without a checkpoint cannot be resumed, and what to do instead."""
@@ -246,16 +259,22 @@ def read_visits(path: Path) -> np.ndarray:
     return visits
 
 
+def setting_differences(saved: TrainConfig, requested: TrainConfig) -> list[str]:
+    """Each result-defining setting in which ``requested`` differs from ``saved`` (a requested None, the task's
+    default, matches whatever was saved), as 'key: checkpoint has A, you asked for B'.
+    """
+    old, new = saved.identity(), requested.identity()
+    return [f"{key}: checkpoint has {old[key]!r}, you asked for {new.get(key)!r}"
+            for key in old if new.get(key) is not None and old[key] != new.get(key)]
+
+
 def check_same_run(saved: TrainConfig, requested: TrainConfig, where: Path) -> None:
     """Raise `RunDirError` naming every result-defining setting that differs between two configs.
 
     A requested None (e.g. ``eval_rollouts``) means "the task's default", which the saved, resolved config
     has filled in; it matches whatever value was saved.
     """
-    old, new = saved.identity(), requested.identity()
-    diffs = [f"{key}: checkpoint has {old[key]!r}, you asked for {new.get(key)!r}"
-             for key in old if new.get(key) is not None and old[key] != new.get(key)]
-    if diffs:
+    if diffs := setting_differences(saved, requested):
         raise RunDirError(f"cannot resume {where}: it was made with different settings ("
                           + "; ".join(diffs) + f"). Re-run with the original settings (see "
                           f"{where.parent / 'config.json'}) or start a fresh run in another --out directory.")
