@@ -8,6 +8,7 @@ observation channels, and fills the rules tables in `fill_rules`.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -155,8 +156,11 @@ class GridTaskEnv(gym.Env):
         names = cls.parameter_names()
         unknown = sorted(set(params) - set(names))
         if unknown:
-            raise TypeError(f"{cls.__name__} got unknown parameter(s) {unknown}; valid task parameters: "
-                            f"{', '.join(names)} (plus dynamism, shaping, reset_free, reward, render_mode)")
+            knobs = ("dynamism", "shaping", "reset_free", "reward", "render_mode")
+            near = [m for u in unknown for m in difflib.get_close_matches(u, (*knobs, *names), n=1)]
+            hint = f" (did you mean {', '.join(near)}?)" if near else ""
+            raise TypeError(f"{cls.__name__} got unknown parameter(s) {unknown}{hint}; the knobs: {', '.join(knobs)}; "
+                            f"valid task parameters: {', '.join(names)}")
         return cls.Config(**params)
 
     def _build_rules(self) -> np.ndarray:

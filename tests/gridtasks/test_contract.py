@@ -140,6 +140,8 @@ def test_bad_knobs_raise_clear_errors(kwargs, message):
 def test_unknown_task_parameter_lists_the_valid_ones():
     with pytest.raises(TypeError, match="valid task parameters: .*grid_size"):
         gridtasks.SaladEnv(deer_speed=0.2)
+    with pytest.raises(TypeError, match=r"\['dynamsim'\] \(did you mean dynamism\?\); the knobs: dynamism"):
+        gridtasks.SaladEnv(dynamsim=0.1)  # a misspelt knob is named, as the command line names a misspelt flag
 
 
 def test_task_specific_choices_are_validated():
