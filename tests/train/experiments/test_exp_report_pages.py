@@ -184,6 +184,8 @@ def test_the_demo_page_draws_the_live_contrast_on_its_shipped_runs_and_says_if_i
     assert first_image == "figures/live_vs_shipped_headline-waypoint.png" and (root / first_image).exists()
     summary = run_summary(root)
     assert "  At 50,000 steps the intervals overlap: this run cannot tell the two apart yet." in summary
+    sentence = "At 50,000 steps the intervals overlap: this run cannot tell the two apart yet."
+    assert f"**{sentence}**" in md and sentence in (root / "index.html").read_text()  # the page says it too
     assert any("the decisive runs: docs/results/paper/headline-waypoint" in line for line in summary)
 
 

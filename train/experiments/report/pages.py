@@ -40,6 +40,7 @@ from train.experiments.report.lead import (
     lead_markdown,
     lead_names,
     missing_shipped_note,
+    separation_sentence,
     source_name,
 )
 from train.experiments.report.paper import load_paper
@@ -223,6 +224,8 @@ def _section_markdown(s: Section, out: Path) -> list[str]:
     info = s.exp.info
     lines = [f"## {s.exp.name} ({info.get('paper', '')}): {info.get('title', '')}", "",
              info.get("description", ""), "", _budget_line(s.exp), ""]
+    if separation := separation_sentence(s.exp):  # the headline pair: do this run's intervals separate yet?
+        lines += [f"**{separation}**", ""]
     if s.curves:
         lines += [f"![learning curves]({s.curves.relative_to(out).as_posix()})", ""]
     if s.curves and s.reference:
@@ -290,6 +293,8 @@ def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Seq
         parts.append(f"<h2>{html.escape(s.exp.name)} ({html.escape(info.get('paper', ''))}): "
                      f"{html.escape(info.get('title', ''))}</h2><p>{html.escape(info.get('description', ''))}</p>"
                      f"<p>{html.escape(_budget_line(s.exp).replace('`', ''))}</p>")
+        if separation := separation_sentence(s.exp):
+            parts.append(f"<p class='claim'><b>{html.escape(separation)}</b></p>")
         for img in [f for f in (s.curves, s.collapse) if f] + s.heatmaps:
             parts.append(f"<p><img src='{html.escape(img.relative_to(out).as_posix())}' alt='{img.stem}'></p>")
         for rows, columns in ((s.finals, FINAL_COLUMNS), (s.milestones, milestone_columns(s.exp)),
