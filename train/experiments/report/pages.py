@@ -54,6 +54,7 @@ from train.experiments.report.runs import (
     load_experiment,
     load_reference,
     load_single_run,
+    reportable_below,
     stopped_before_evaluating,
 )
 from train.experiments.report.stats import BOOTSTRAP_NOTE, COLLAPSED_RULE, DIVERGED_RULE
@@ -69,8 +70,8 @@ from train.experiments.report.webvideo import (
     WebVideo,
     caption_of,
     find_videos,
-    h264_codec,
     render_missing_videos,
+    video_tag,
     web_copy,
 )
 from train.storage.fileio import atomic_text
@@ -307,43 +308,13 @@ def write_html(source: Path, out: Path, sections: Sequence[Section], videos: Seq
             parts.append("<p>What the paper reports:</p><ul>" + "".join(
                 f"<li>{html.escape(c['text'])} ({html.escape(c['figure'])})</li>" for c in s.claims) + "</ul>")
         mine = [v for v in videos if s.exp.path in v.source.parents]
-        parts += [_video_tag(out, v) for v in mine]
+        parts += [video_tag(out, v) for v in mine]
         shown.update(v.mp4 for v in mine)
     loose = [v for v in videos if v.mp4 not in shown]
     if loose:
-        parts.append("<h2>Videos</h2>" + "".join(_video_tag(out, v) for v in loose))
+        parts.append("<h2>Videos</h2>" + "".join(video_tag(out, v) for v in loose))
     parts.append("</body></html>")
     return atomic_text(out / "index.html", "\n".join(parts) + "\n")
-
-
-def reportable_below(source: Path, depth: int = 4) -> list[Path]:
-    """Folders under ``source`` (at most ``depth`` levels down, ``source`` itself and its children aside) that
-    `make_report` takes: an experiment's results or a train run; relative paths, sorted.
-    """
-    found = []
-    for level in range(2, depth + 1):
-        for path in sorted(source.glob("/".join(["*"] * level))):
-            if path.name == EXPERIMENT_FILE or (path.name == "config.json" and (path.parent / "metrics.csv").exists()):
-                parent = path.parent.relative_to(source)
-                if not any(parent.is_relative_to(f) for f in found):
-                    found.append(parent)
-    return found
-
-
-def _video_tag(out: Path, video: WebVideo) -> str:
-    """A captioned H.264 <video> whose poster is its middle frame, and its filmstrip if it has one."""
-    src = html.escape(video.mp4.relative_to(out).as_posix())
-    poster = html.escape(video.poster.relative_to(out).as_posix())
-    codec = h264_codec(video.mp4)  # the encoder's profile and level (a browser skips a source it thinks it cannot play)
-    kind = f"video/mp4; codecs=&quot;{codec}&quot;" if codec else "video/mp4"
-    tag = (f"<figure><video controls loop muted preload='metadata' poster='{poster}'>"
-           f"<source src='{src}' type='{kind}'></video>"
-           f"<figcaption>{html.escape(video.caption)} (<a href='{src}'>mp4</a>)</figcaption></figure>")
-    if video.strip is None:
-        return tag
-    strip = html.escape(video.strip.relative_to(out).as_posix())
-    return (f"{tag}<figure class='strip'><img src='{strip}' alt='filmstrip'><figcaption>the first episode, "
-            f"frame by frame</figcaption></figure>")
 
 
 def web_videos(source: Path, out: Path, sections: Sequence[Section]) -> list[WebVideo]:

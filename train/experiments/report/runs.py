@@ -245,6 +245,20 @@ def find_experiment_dirs(root: Path) -> list[Path]:
     return sorted(found, key=lambda p: (order.index(p.name) if p.name in order else len(order), p.name))
 
 
+def reportable_below(source: Path, depth: int = 4) -> list[Path]:
+    """Folders under ``source`` (at most ``depth`` levels down, ``source`` itself and its children aside) that
+    `make_report` takes: an experiment's results or a train run; relative paths, sorted.
+    """
+    found = []
+    for level in range(2, depth + 1):
+        for path in sorted(source.glob("/".join(["*"] * level))):
+            if path.name == EXPERIMENT_FILE or (path.name == "config.json" and (path.parent / "metrics.csv").exists()):
+                parent = path.parent.relative_to(source)
+                if not any(parent.is_relative_to(f) for f in found):
+                    found.append(parent)
+    return found
+
+
 class ReportError(ValueError):
     """A results directory the report refuses to read (the message says why)."""
 

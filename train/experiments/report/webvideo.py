@@ -8,6 +8,7 @@ into the report's own ``figures/videos/`` beside a PNG of its middle frame, so t
 
 from __future__ import annotations
 
+import html
 import json
 import os
 import sys
@@ -209,3 +210,18 @@ def web_copy(video: Path, out_dir: Path, name: str, caption: str, source: Path |
             print(f"ecorl report: skipped a filmstrip: {err}", file=sys.stderr)
     return WebVideo(mp4, poster, caption, source, copied)
 
+
+def video_tag(out: Path, video: WebVideo) -> str:
+    """A captioned H.264 <video> whose poster is its middle frame, and its filmstrip if it has one."""
+    src = html.escape(video.mp4.relative_to(out).as_posix())
+    poster = html.escape(video.poster.relative_to(out).as_posix())
+    codec = h264_codec(video.mp4)  # the encoder's profile and level (a browser skips a source it thinks it cannot play)
+    kind = f"video/mp4; codecs=&quot;{codec}&quot;" if codec else "video/mp4"
+    tag = (f"<figure><video controls loop muted preload='metadata' poster='{poster}'>"
+           f"<source src='{src}' type='{kind}'></video>"
+           f"<figcaption>{html.escape(video.caption)} (<a href='{src}'>mp4</a>)</figcaption></figure>")
+    if video.strip is None:
+        return tag
+    strip = html.escape(video.strip.relative_to(out).as_posix())
+    return (f"{tag}<figure class='strip'><img src='{strip}' alt='filmstrip'><figcaption>the first episode, "
+            f"frame by frame</figcaption></figure>")
