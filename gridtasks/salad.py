@@ -91,7 +91,9 @@ class SaladEnv(GridTaskEnv):
     ## Dynamism and shaping
     dynamism p: each step each ingredient grows at a random empty cell with probability p, and every
     ingredient withers when its age reaches ``int(initial_count / p)`` (the expected count stays about
-    ``initial_count``); growth stops while more than (n-2)²//8 of a kind are on the grid. p = 0:
+    ``initial_count`` while that lifespan is long; where it is 1, e.g. ``initial_count=1`` at p > 0.5, an
+    ingredient withers in the step it grows and the grid stays empty, as the original's formula makes it);
+    growth stops while more than (n-2)²//8 of a kind are on the grid. p = 0:
     ingredients are permanent and regrow only when none of a kind is left on the grid
     (``regrow_when_empty``). As in the original, growth comes before ageing (a grown ingredient can be
     picked up on lifespan - 1 steps), populations are counted on the grid only (picking up the last
