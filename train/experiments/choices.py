@@ -82,18 +82,25 @@ under the original's), and hunting's and factory's directed steps aimed at the a
 free cells only (the original's aim at the cell it left, and a blocked best step is not taken, the default since
 2026-12-07; docs/fidelity.md gives both rules' random-policy numbers)."""
 
+
 def shipped_rules(task: str, settings: dict[str, Any]) -> dict[str, Any]:
     """The `SHIPPED_RULES` a condition of ``task`` with these flat settings keeps: scavenging's always, the
-    directed-step rule only where creatures take directed steps (hunting's deer with ``deer_speed`` > 0, factory's
-    workers under shaping), so that every other condition keeps the very config its shipped runs have.
+    directed-step rule only where creatures take directed steps, so that every other condition keeps the very
+    config its shipped runs have.
     """
     rules = dict(SHIPPED_RULES.get(task, {}))
-    env_kwargs = settings.get("env_kwargs", {})
-    directed = {"hunting": lambda: env_kwargs.get("deer_speed", 0.0) > 0,
-                "factory": lambda: not parse_schedule(settings.get("shaping", 0.0)).is_zero}
-    if task in directed and not directed[task]():
-        rules.pop("directed_moves")
+    if "directed_moves" in rules and not takes_directed_steps(task, settings):
+        del rules["directed_moves"]
     return rules
+
+
+def takes_directed_steps(task: str, settings: dict[str, Any]) -> bool:
+    """Whether a hunting or factory condition's creatures step toward or away from the agent: hunting's deer
+    with a ``deer_speed``, factory's workers under shaping.
+    """
+    if task == "hunting":
+        return settings.get("env_kwargs", {}).get("deer_speed", 0.0) > 0
+    return not parse_schedule(settings.get("shaping", 0.0)).is_zero
 
 
 SHAPING_BASE = MappingProxyType({
