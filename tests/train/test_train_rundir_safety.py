@@ -90,6 +90,11 @@ def test_a_fresh_run_in_a_folder_holding_one_of_other_settings_is_not_told_to_re
     assert "Pass --resume to continue the run it holds" in _one_line_error(capsys)
 
 
+def test_resuming_a_folder_that_does_not_exist_says_there_is_no_run(tmp_path, capsys):
+    assert main(["train", "salad", "--resume", "--out", str(tmp_path / "nowhere")]) == 2
+    assert f"there is no run at {tmp_path / 'nowhere'}: nothing to resume" in _one_line_error(capsys)
+
+
 def test_resume_takes_the_steps_the_run_was_made_with_though_they_round_up_to_an_epoch(tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["train", "salad", "--steps", "450", *TINY, "--out", str(run)]) == 0  # 450 ends at step 600
