@@ -23,9 +23,19 @@ def _run(cwd: Path, args: list[str], seconds: float = 250, **env: str) -> subpro
                           timeout=300)
 
 
+def _slow_start(tmp_path: Path) -> str:
+    """A folder for PYTHONPATH whose sitecustomize holds every Python 5 s before it runs anything: a chunk that
+    stops sooner stops before its trainer starts, however idle or busy the machine (a chunk of 0.2 s alone let a
+    smoke run finish under CI's load).
+    """
+    site = tmp_path / "slow-site"
+    site.mkdir()
+    (site / "sitecustomize.py").write_text("import time\ntime.sleep(5)\n")
+    return str(site)
+
+
 def test_chunks_resume_until_done_side_by_side_and_bring_back_one_small_archive(tmp_path):
-    # stopped at once, before the trainer can start (a whole second let a warm smoke run finish at times)
-    first = _run(tmp_path, EPISODIC, seconds=0.2)
+    first = _run(tmp_path, EPISODIC, seconds=0.5, PYTHONPATH=_slow_start(tmp_path))
     assert first.returncode == 124, first.stdout + first.stderr
     assert "== not finished: run this again" in first.stdout
     finished = _run(tmp_path, [*EPISODIC, "+", *RESET_FREE])  # a lone "+": two runs side by side
