@@ -22,11 +22,11 @@ Every experiment of `train.experiments.catalog` builds on them:
   3e-4, chosen as the paper chose it, by a learning-rate sweep (the released salad script sweeps 1e-5 ... 1e-3;
   every other released script fixes 1e-4). The sweep is the ``settings`` experiment; its evidence is in
   docs/fidelity.md ("Trainer settings").
-* task parameters kept as shipped (`SHIPPED_RULES`, `shipped_rules`): scavenging's predators are reborn off the
-  agent's cell (``predator_respawn="off-agent"``) in every experiment, and hunting's and factory's directed steps
-  aim at the agent's cell after its move (``directed_moves="current-free"``) in every condition whose creatures
-  take them, the rules the shipped runs trained with, though the environments' defaults are now the original's;
-  so re-running an experiment re-runs what is shipped.
+* task parameters kept as shipped (`shipped_rules`): scavenging's predators are reborn off the agent's cell
+  (``predator_respawn="off-agent"``, `SHIPPED_RULES`) in every experiment, and hunting's and factory's directed
+  steps aim at the agent's cell after its move (``directed_moves="current-free"``) in the conditions whose shipped
+  runs trained so (`CURRENT_FREE_RUNS`), though the environments' defaults are now the original's; so re-running
+  an experiment re-runs what is shipped.
 * evaluation horizon: left to the trainer, which takes each task's test horizon from its test MDP
   (``test_mdp_kwargs()``), whatever the training horizon.
 """
@@ -36,11 +36,10 @@ from __future__ import annotations
 from types import MappingProxyType
 from typing import Any
 
-from ecology import parse_schedule
 from train.tasks import TASKS
 
-__all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE",
-           "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED", "shipped_rules"]
+__all__ = ["CURRENT_FREE_RUNS", "DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
+           "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED", "shipped_rules"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -69,38 +68,34 @@ TUNED = MappingProxyType({"salad": MappingProxyType({"lr": 3e-4})})
 code's); a condition's own overrides still win. Salad's learning rate is the best of the settings study's
 sweep (10 seeds x 500 000 steps per rate; docs/fidelity.md)."""
 
-SHIPPED_RULES = MappingProxyType({
-    "scavenging": MappingProxyType({"predator_respawn": "off-agent"}),
-    "hunting": MappingProxyType({"directed_moves": "current-free"}),
-    "factory": MappingProxyType({"directed_moves": "current-free"}),
+SHIPPED_RULES = MappingProxyType({"scavenging": MappingProxyType({"predator_respawn": "off-agent"})})
+"""Task parameters every experiment sets on a task (under a condition's own ``env_kwargs``) to keep a rule its
+shipped runs trained with where the environment's default has since become the original code's: scavenging's
+predators reborn at once off the agent's cell (the original's, one per step and possibly on the agent, is the
+default since 2026-12-06; a random policy is caught on 4 569 steps per 20 000 under the kept rule, 4 882 under the
+original's)."""
+
+CURRENT_FREE_RUNS = frozenset({
+    "shaping/hunting/env-shaping-sparse", "shaping/hunting/env-shaping-subgoal", "shaping/hunting/distance-reward",
+    "shaping/hunting/one-time-reward", "shaping/hunting/no-shaping", "shaping/factory/env-shaping-sparse",
+    "shaping/factory/env-shaping-subgoal", "rnd/factory/env-shaping", "factory-make-axe/factory/env-shaping-sparse",
+    "factory-make-axe/factory/env-shaping-subgoal",
 })
-"""Task parameters the experiments set (under a condition's own ``env_kwargs``; `shipped_rules` says where) to keep
-a rule their shipped runs trained with where the environment's default has since become the original code's:
-scavenging's predators reborn at once off the agent's cell (the original's, one per step and possibly on the agent,
-is the default since 2026-12-06; a random policy is caught on 4 569 steps per 20 000 under the kept rule, 4 882
-under the original's), and hunting's and factory's directed steps aimed at the agent's cell after its move, among
-free cells only (the original's aim at the cell it left, and a blocked best step is not taken, the default since
-2026-12-07; docs/fidelity.md gives both rules' random-policy numbers)."""
+"""The conditions (experiment/task/condition) whose shipped runs trained hunting's deer or factory's workers with
+directed steps aimed at the agent's cell after its move, among free cells only (``directed_moves="current-free"``,
+ecorl's rule until 2026-12-07; the original's aims at the cell the agent left and does not take a blocked best
+step, the default since; docs/fidelity.md gives both rules' random-policy numbers). Each keeps that rule until it
+is re-run under the original's and shipped, then leaves this set."""
 
 
-def shipped_rules(task: str, settings: dict[str, Any]) -> dict[str, Any]:
-    """The `SHIPPED_RULES` a condition of ``task`` with these flat settings keeps: scavenging's always, the
-    directed-step rule only where creatures take directed steps, so that every other condition keeps the very
-    config its shipped runs have.
+def shipped_rules(experiment: str, task: str, condition: str) -> dict[str, Any]:
+    """The task parameters a condition keeps from its shipped runs (`SHIPPED_RULES`, `CURRENT_FREE_RUNS`), so
+    that re-running an experiment re-runs what is shipped.
     """
     rules = dict(SHIPPED_RULES.get(task, {}))
-    if "directed_moves" in rules and not takes_directed_steps(task, settings):
-        del rules["directed_moves"]
+    if f"{experiment}/{task}/{condition}" in CURRENT_FREE_RUNS:
+        rules["directed_moves"] = "current-free"
     return rules
-
-
-def takes_directed_steps(task: str, settings: dict[str, Any]) -> bool:
-    """Whether a hunting or factory condition's creatures step toward or away from the agent: hunting's deer
-    with a ``deer_speed``, factory's workers under shaping.
-    """
-    if task == "hunting":
-        return settings.get("env_kwargs", {}).get("deer_speed", 0.0) > 0
-    return not parse_schedule(settings.get("shaping", 0.0)).is_zero
 
 
 SHAPING_BASE = MappingProxyType({

@@ -461,12 +461,15 @@ def test_walls_released_is_walls_with_the_released_network():
 
 
 def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_they_act():
-    """`SHIPPED_RULES`: the envs' defaults are the original's predator respawn and directed steps; the experiments
+    """`shipped_rules`: the envs' defaults are the original's predator respawn and directed steps; the experiments
     keep the shipped rules, a condition's own env_kwargs beside them: the respawn on every scavenging condition,
-    the directed steps exactly where creatures take them (hunting's deer with a speed, factory's shaped workers).
+    the old directed steps on the conditions `CURRENT_FREE_RUNS` names, each of which has creatures that take
+    directed steps (hunting's deer with a speed, factory's shaped workers: elsewhere the rule changes nothing).
     """
     from ecology import parse_schedule
+    from train.experiments.catalog import CURRENT_FREE_RUNS
 
+    seen = set()
     for exp in EXPERIMENTS.values():
         for task, conditions in exp.conditions.items():
             for c in conditions:
@@ -474,8 +477,11 @@ def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_th
                     continue
                 cfg = job_config(exp, task, c, exp.budget("smoke"))
                 kwargs, own = cfg.env.env_kwargs, c.overrides.get("env_kwargs", {})
-                directed = (task == "hunting" and kwargs.get("deer_speed", 0.0) > 0) or (
-                    task == "factory" and not parse_schedule(cfg.env.shaping).is_zero)
                 kept = {"predator_respawn": "off-agent"} if task == "scavenging" else {}
-                kept |= {"directed_moves": "current-free"} if directed else {}
+                if f"{exp.name}/{task}/{c.name}" in CURRENT_FREE_RUNS:
+                    seen.add(f"{exp.name}/{task}/{c.name}")
+                    assert (task == "hunting" and kwargs.get("deer_speed", 0.0) > 0) or (
+                        task == "factory" and not parse_schedule(cfg.env.shaping).is_zero), (exp.name, task, c.name)
+                    kept |= {"directed_moves": "current-free"}
                 assert kwargs == {**own, **kept}, (exp.name, task, c.name)
+    assert seen == CURRENT_FREE_RUNS  # no name in it that the catalog lacks

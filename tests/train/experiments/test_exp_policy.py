@@ -329,21 +329,23 @@ def test_shipped_scavenging_runs_name_the_predator_respawn_they_trained_with():
 
 
 def test_shipped_runs_whose_creatures_take_directed_steps_name_the_rule_they_trained_with():
-    """Hunting's hard deer and factory's shaped workers trained before the original's directed steps became the
-    default (docs/fidelity.md): their configs and policies say ``current-free``; no other shipped run names it.
+    """Hunting's hard deer and factory's shaped workers that trained before the original's directed steps became
+    the default (docs/fidelity.md): exactly the runs `CURRENT_FREE_RUNS` names, their configs and policies saying
+    ``current-free``; every other shipped run names no rule (it trained with the default).
     """
     from ecology import parse_schedule
+    from train.experiments.catalog import CURRENT_FREE_RUNS
 
     root = Path(__file__).resolve().parents[3] / "docs/results"
-    named = []
+    named = set()
     for path in sorted(root.rglob("config.json")):
         env = TrainConfig.from_dict(json.loads(path.read_text())).env
-        directed = (env.task == "hunting" and env.env_kwargs.get("deer_speed", 0.0) > 0) or (
-            env.task == "factory" and not parse_schedule(env.shaping).is_zero)
-        assert ("directed_moves" in env.env_kwargs) == directed, path
-        if directed:
-            named.append(path.parent)
-            assert env.env_kwargs["directed_moves"] == "current-free", path
-            for policy in (path.parent / "policies").glob("*.npz"):
-                assert load_policy_file(policy).test_kwargs["directed_moves"] == "current-free", policy
-    assert len(named) == 10
+        if "directed_moves" not in env.env_kwargs:
+            continue
+        named.add(path.parent.relative_to(root / "paper").as_posix())
+        assert (env.task == "hunting" and env.env_kwargs.get("deer_speed", 0.0) > 0) or (
+            env.task == "factory" and not parse_schedule(env.shaping).is_zero), path
+        assert env.env_kwargs["directed_moves"] == "current-free", path
+        for policy in (path.parent / "policies").glob("*.npz"):
+            assert load_policy_file(policy).test_kwargs["directed_moves"] == "current-free", policy
+    assert named == CURRENT_FREE_RUNS
