@@ -106,6 +106,16 @@ def read_done(run_dir: str | Path) -> dict[str, Any] | None:
     return done if isinstance(done, dict) else {}
 
 
+def job_is_done_safely(job: Job) -> bool:
+    """`job_is_done`, False where the job's folder holds a run of other settings: the mismatch surfaces when the
+    job runs (as a failure with its message) or in a dry run's plan (a clash line), not while planning.
+    """
+    try:
+        return job_is_done(job)
+    except Exception:
+        return False
+
+
 def job_is_done(job: Job) -> bool:
     """True when the job's directory holds a done marker that covers the job's budget and settings."""
     done = None if job.restart else read_done(job.run_dir)

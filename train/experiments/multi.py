@@ -16,7 +16,7 @@ from pathlib import Path
 
 from train.config import TrainConfig
 from train.experiments.experiment import Experiment
-from train.experiments.jobs import Job, job_is_done
+from train.experiments.jobs import Job, job_is_done, job_is_done_safely
 from train.experiments.sweep import plan
 from train.storage.fileio import atomic_dir, is_temporary
 from train.storage.rundir import LOCK_NAME, RunDir
@@ -105,11 +105,11 @@ def finished_twins(jobs: Sequence[Job], others: Sequence[Experiment], budget: st
         except ValueError:  # an experiment these overrides do not fit has no runs to share
             continue
         for job in planned:
-            if not job.is_measurement and job_is_done(job):
+            if not job.is_measurement and job_is_done_safely(job):
                 finished.setdefault(_identity(job), job)
     train, copies = [], []
     for job in jobs:
-        twin = None if job.is_measurement or job.restart or job_is_done(job) else finished.get(_identity(job))
+        twin = None if job.is_measurement or job.restart or job_is_done_safely(job) else finished.get(_identity(job))
         folder = Path(job.run_dir)
         if twin is not None and not (folder.exists() and any(folder.iterdir())):
             copies.append((job, twin))

@@ -30,7 +30,7 @@ from typing import Any
 from train.config import TrainConfig
 from train.experiments.catalog import Experiment, job_config
 from train.experiments.executors import run_local, run_ray, usable_cpus
-from train.experiments.jobs import Job, JobResult, Pack, job_is_done
+from train.experiments.jobs import Job, JobResult, Pack, job_is_done_safely
 from train.storage.checkpoint import CHECKPOINT_NAME
 from train.storage.fileio import atomic_text
 from train.storage.rundir import EXPERIMENT_FILE
@@ -223,7 +223,7 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
     """
     from tqdm import tqdm
 
-    done_before = [j for j in jobs if _safe_is_done(j)]
+    done_before = [j for j in jobs if job_is_done_safely(j)]
     todo = [j for j in jobs if j not in done_before]
     monitored = todo
     todo = sorted(pack_jobs(todo, pack) if pack else todo, key=lambda j: -j.cost)
@@ -266,14 +266,6 @@ def run_jobs(jobs: Sequence[Job], executor: str = "local", workers: int | None =
 def _nothing():
     """A context that does nothing."""
     yield
-
-
-def _safe_is_done(job: Job) -> bool:
-    """`job_is_done`, letting a settings mismatch surface when the job runs (as a failure with its message)."""
-    try:
-        return job_is_done(job)
-    except Exception:
-        return False
 
 
 def summarize(results: Iterable[JobResult]) -> dict[str, int]:
@@ -324,7 +316,7 @@ def print_plan(jobs: Sequence[Job], file=None) -> int:
                 what += f", seeds {c.run.first_seed}-{c.run.first_seed + c.run.seeds - 1}"
         clash = "" if job.is_measurement else settings_clash(job)
         failing += bool(clash)
-        state = "clash" if clash else "restart" if job.restart else "done" if _safe_is_done(job) else (
+        state = "clash" if clash else "restart" if job.restart else "done" if job_is_done_safely(job) else (
             "resume" if (Path(job.run_dir) / CHECKPOINT_NAME).exists() else "new")
         print(f"[{state:>6s}] {job.name}: {what}{clash}", file=file)
     return failing
@@ -334,7 +326,7 @@ def print_packs(jobs: Sequence[Job], pack: int, file=None) -> None:
     """One line per pack that `run_jobs` would form from the jobs not yet done (``pack`` as there)."""
     from train.experiments.jobs import Pack
 
-    todo = [j for j in jobs if not _safe_is_done(j)]
+    todo = [j for j in jobs if not job_is_done_safely(j)]
     for unit in pack_jobs(todo, pack):
         if isinstance(unit, Pack):
             seeds = sum(TrainConfig.from_dict(j.config).run.seeds for j in unit.jobs)

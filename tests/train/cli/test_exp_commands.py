@@ -357,6 +357,24 @@ def test_dry_run_says_which_runs_clash_with_the_settings_asked_for(capsys, tmp_p
     assert "first_seed: checkpoint has 0, you asked for 3" in out[1] and "--restart static-episodic" in out[1]
 
 
+def test_dry_run_plans_every_run_when_a_finished_one_clashes_with_the_seeds_asked_for(capsys, tmp_path):
+    """A finished run of 2 seeds and --seeds 3: the dry run stopped at once with that run's error, no plan."""
+    import json
+
+    from train.experiments.catalog import get_experiment
+    from train.experiments.sweep import plan
+
+    job = plan(get_experiment("headline"), "smoke", tmp_path, conditions=["static-episodic"])[0]
+    run_dir = tmp_path / "headline" / "salad" / "static-episodic"
+    run_dir.mkdir(parents=True)
+    (run_dir / "config.json").write_text(json.dumps(job.config))
+    (run_dir / "done.json").write_text(json.dumps({"total_steps": 10**9, "seeds": 2}))
+    assert cli.main(["run", "headline", "--budget", "smoke", "--seeds", "3", "--dry-run", "--out", str(tmp_path)]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("[ clash] headline/salad/static-episodic") and "seeds: checkpoint has 2" in out[1]
+    assert [line.split("]")[0] for line in out[2:]] == ["[   new"] * 3  # the other three conditions
+
+
 def test_dry_run_says_a_folder_holding_foreign_files_will_fail(capsys, tmp_path):
     """Planned as [new] before, and the run then failed: ecorl never deletes files it did not write."""
     run_dir = tmp_path / "headline" / "salad" / "static-episodic"
