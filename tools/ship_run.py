@@ -5,7 +5,8 @@
 RUN_DIR is what `ecorl run` wrote for one condition (`OUT/EXPERIMENT/TASK/CONDITION`); DEST_DIR is where it is
 shipped (`docs/results/paper/EXPERIMENT/TASK/CONDITION`). Copied: `config.json`, `done.json`, `metrics.csv`,
 `visits.npy` and `policies/`, plus the visitation snapshots the report's heat-maps draw (`heatmap_snapshot_files`);
-never the checkpoint. The experiment's `experiment.json` is copied beside the task folders when missing. Then
+never the checkpoint. A run shipped there before leaves nothing behind (`clear_replaced_run`). The experiment's
+`experiment.json` is copied beside the task folders when missing. Then
 `ecorl report DEST_EXPERIMENT --out DEST_EXPERIMENT` rebuilds the page.
 
 The per-seed table printed after the copy (final and best validation success, largest |Q| at the end and at any
@@ -24,6 +25,7 @@ import sys
 from pathlib import Path
 
 from train.experiments.report.figures import heatmap_snapshot_files
+from train.experiments.report.webvideo import STRIP_NAME, VIDEO_INFO
 
 COPIED_FILES = ("config.json", "done.json", "metrics.csv", "visits.npy")
 
@@ -32,6 +34,7 @@ def ship(run_dir: Path, dest: Path) -> None:
     """Copy the run's shipped files from `run_dir` to `dest` (refusing an unfinished run)."""
     if not (run_dir / "done.json").exists():
         sys.exit(f"error: {run_dir} has no done.json: the run has not finished; ship it when `ecorl run` ends")
+    clear_replaced_run(dest)
     dest.mkdir(parents=True, exist_ok=True)
     for name in COPIED_FILES:
         shutil.copy2(run_dir / name, dest / name)
@@ -43,6 +46,17 @@ def ship(run_dir: Path, dest: Path) -> None:
     experiment_file = run_dir.parent.parent / "experiment.json"
     if experiment_file.exists() and not (dest.parent.parent / "experiment.json").exists():
         shutil.copy2(experiment_file, dest.parent.parent / "experiment.json")
+
+
+def clear_replaced_run(dest: Path) -> None:
+    """Remove what a run shipped earlier to ``dest`` leaves that the new run would not overwrite: its policies and
+    heat-map snapshots, and its film (`ecorl report` keeps a film made at the run's last step, and a re-run ends at
+    the same step: the old film would stay, showing the old run).
+    """
+    for folder in ("policies", "visits"):
+        shutil.rmtree(dest / folder, ignore_errors=True)
+    for name in ("video.mp4", VIDEO_INFO, STRIP_NAME):
+        (dest / name).unlink(missing_ok=True)
 
 
 def read_seeds(metrics_csv: Path) -> dict[int, list[dict[str, float]]]:

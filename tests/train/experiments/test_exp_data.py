@@ -122,7 +122,7 @@ def test_shaping_conditions_follow_the_paper():
             assert ("shaping" in c.overrides) == c.name.startswith("env-shaping")
     hunting = exp.conditions["hunting"][0]
     cfg = job_config(exp, "hunting", hunting, exp.budget("paper"))
-    assert cfg.env.env_kwargs == {"deer_kind": "hard", "deer_speed": 0.2, "directed_moves": "current-free"}
+    assert cfg.env.env_kwargs == {"deer_kind": "hard", "deer_speed": 0.2}  # the original directed steps (re-run)
     assert cfg.env.shaping == SHAPING_SCHEDULE["hunting"]
     assert {c.overrides["dynamism"] for c in exp.conditions["salad"]} == {0.05}
 
