@@ -76,9 +76,9 @@ default since 2026-12-06; a random policy is caught on 4 569 steps per 20 000 un
 original's)."""
 
 CURRENT_FREE_RUNS = frozenset({
-    "shaping/hunting/env-shaping-subgoal", "shaping/hunting/distance-reward", "shaping/hunting/one-time-reward",
-    "shaping/factory/env-shaping-sparse", "shaping/factory/env-shaping-subgoal", "rnd/factory/env-shaping",
-    "factory-make-axe/factory/env-shaping-sparse", "factory-make-axe/factory/env-shaping-subgoal",
+    "shaping/hunting/env-shaping-subgoal", "shaping/factory/env-shaping-sparse", "shaping/factory/env-shaping-subgoal",
+    "rnd/factory/env-shaping", "factory-make-axe/factory/env-shaping-sparse",
+    "factory-make-axe/factory/env-shaping-subgoal",
 })
 """The conditions (experiment/task/condition) whose shipped runs trained hunting's deer or factory's workers with
 directed steps aimed at the agent's cell after its move, among free cells only (``directed_moves="current-free"``,
