@@ -358,7 +358,7 @@ def test_dry_run_says_which_runs_clash_with_the_settings_asked_for(capsys, tmp_p
 
 
 def test_dry_run_plans_every_run_when_a_finished_one_clashes_with_the_seeds_asked_for(capsys, tmp_path):
-    """A finished run of 2 seeds and --seeds 3: the dry run stopped at once with that run's error, no plan."""
+    """A finished run of 2 seeds and --seeds 3: the dry run used to stop with that run's error and plan nothing."""
     import json
 
     from train.experiments.catalog import get_experiment
