@@ -25,7 +25,7 @@ import sys
 from pathlib import Path
 
 from train.experiments.report.figures import heatmap_snapshot_files
-from train.experiments.report.webvideo import STRIP_NAME, VIDEO_INFO
+from train.storage.rundir import FILM_FILES
 
 COPIED_FILES = ("config.json", "done.json", "metrics.csv", "visits.npy")
 
@@ -55,7 +55,7 @@ def clear_replaced_run(dest: Path) -> None:
     """
     for folder in ("policies", "visits"):
         shutil.rmtree(dest / folder, ignore_errors=True)
-    for name in ("video.mp4", VIDEO_INFO, STRIP_NAME):
+    for name in FILM_FILES:
         (dest / name).unlink(missing_ok=True)
 
 

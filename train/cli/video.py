@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from train.cli.common import UserError, check_out_file, nonnegative, positive, probability, user_errors
-from train.storage.rundir import RunDirError
+from train.storage.rundir import FILM_NAME, RunDirError
 
 VIDEO_DIR = Path("results") / "videos"
 """Where a film of a policy file or a random policy goes unless --out says otherwise (results/ is git-ignored)."""
@@ -60,7 +60,7 @@ def _video_source(args: argparse.Namespace) -> tuple[Path | None, Path]:
         return shipped, VIDEO_DIR / f"{args.task}-{'trained' if shipped else 'random'}.mp4"
     if is_policy_file(args.policy):
         return args.policy, VIDEO_DIR / f"{args.task}-trained.mp4"
-    return args.policy, resolve_run_dir(args.policy) / "video.mp4"
+    return args.policy, resolve_run_dir(args.policy) / FILM_NAME
 
 
 def check_out(out: Path | None, task: str) -> None:

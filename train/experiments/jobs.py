@@ -19,7 +19,7 @@ from train.config import TrainConfig
 from train.experiments import table1
 from train.loop.runlog import Interrupted
 from train.storage.fileio import atomic_text, is_temporary
-from train.storage.rundir import RUN_POLICIES_DIR
+from train.storage.rundir import FILM_FILES, RUN_POLICIES_DIR
 from train.storage.safeio import UnsafeFileError, load_json
 
 DONE_FILE = "done.json"
@@ -31,8 +31,9 @@ UNSTARTED_FILES = ("config.json", "progress.json")
 `train.storage.fileio.is_temporary`); cleared before it starts again. Anything else is a result, never deleted
 unless the job is restarted."""
 RESULT_FILES = ("config.json", "metrics.csv", "visits.npy", "visits", "tensorboard", "progress.json",
-                RUN_POLICIES_DIR, DONE_FILE)
-"""What ``--restart`` clears (with the checkpoint) before a condition starts again."""
+                RUN_POLICIES_DIR, DONE_FILE, *FILM_FILES)
+"""What ``--restart`` clears (with the checkpoint) before a condition starts again (the report's film of the run
+too: it would show the run deleted)."""
 
 
 class FinishedWithoutCheckpoint(RuntimeError):

@@ -341,7 +341,8 @@ def settings_clash(job: Job) -> str:
     from train.storage.rundir import RunDirError, check_same_run
 
     run_dir = Path(job.run_dir)
-    if (job.restart or not (run_dir / CHECKPOINT_NAME).exists()) and (names := foreign_files(run_dir)):
+    starts_afresh = job.restart or not ((run_dir / CHECKPOINT_NAME).exists() or job_is_done_safely(job))
+    if starts_afresh and (names := foreign_files(run_dir)):
         return f"\n         will fail: {foreign_files_message(run_dir, names).removesuffix('.')}"
     saved = run_dir / "config.json"
     if job.restart or not saved.is_file():

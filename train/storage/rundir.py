@@ -62,6 +62,15 @@ LOCK_NAME = ".lock"
 RUN_POLICIES_DIR = "policies"
 """Where a finished experiment run keeps its exported policies (``best.npz``, ``median.npz``)."""
 
+FILM_NAME = "video.mp4"
+"""A run's film, which `ecorl report` makes of its best seed (and `ecorl video` of a policy exported there)."""
+VIDEO_INFO = "video.json"
+"""Sidecar of a filmed run's ``video.mp4``: the seed filmed and the episodes solved."""
+STRIP_NAME = "filmstrip.png"
+"""Beside a filmed run's ``video.mp4``: its first episode as a row of frames (the paper's Fig. 11-12)."""
+FILM_FILES = (FILM_NAME, VIDEO_INFO, STRIP_NAME)
+"""What filming a run writes into its directory."""
+
 
 SUBDIRS = ("visits", "tensorboard")
 """Directories inside a run directory that ecorl writes into (never through a link)."""

@@ -391,6 +391,32 @@ def test_dry_run_says_a_folder_holding_foreign_files_will_fail(capsys, tmp_path)
     assert cli.main([*args, "--restart", "static-episodic"]) == 1  # a restart deletes only what ecorl wrote
 
 
+def test_a_finished_run_is_done_whatever_else_its_folder_holds(capsys, tmp_path):
+    """A shipped run (no checkpoint; the report's film beside it, a note of the user's) was planned as a clash, as
+    if it would start afresh; a restart clears the film with the run and still stops at the user's file.
+    """
+    import json
+
+    from train.experiments.catalog import get_experiment
+    from train.experiments.sweep import plan
+    from train.storage.rundir import FILM_FILES
+
+    job = plan(get_experiment("headline"), "smoke", tmp_path, conditions=["static-episodic"])[0]
+    run_dir = tmp_path / "headline" / "salad" / "static-episodic"
+    run_dir.mkdir(parents=True)
+    (run_dir / "config.json").write_text(json.dumps(job.config))
+    (run_dir / "done.json").write_text(json.dumps({"total_steps": 10**9, "seeds": job.config["run"]["seeds"]}))
+    for name in (*FILM_FILES, "notes.txt"):
+        (run_dir / name).write_text("")
+    args = ["run", "headline", "--budget", "smoke", "--condition", "static-episodic", "--dry-run", "--out",
+            str(tmp_path)]
+    assert cli.main(args) == 0
+    assert capsys.readouterr().out.startswith("[  done] headline/salad/static-episodic")
+    assert cli.main([*args, "--restart", "static-episodic"]) == 1
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("[ clash]") and "holds files ecorl did not write (notes.txt)" in out[1]
+
+
 def test_dry_run_says_a_stopped_run_past_the_steps_asked_for_will_fail(capsys, tmp_path):
     """A run stopped at step 5 700 was planned as [resume] for --steps 1000; the run then failed ('stands at step')."""
     args = ["run", "headline", "--budget", "smoke", "--condition", "static-episodic", "--no-progress", "--out",

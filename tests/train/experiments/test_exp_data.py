@@ -21,8 +21,8 @@ from train.experiments.catalog import (
     get_experiment,
     job_config,
 )
-from train.experiments.report.webvideo import STRIP_NAME, VIDEO_INFO
 from train.experiments.sweep import plan
+from train.storage.rundir import FILM_FILES
 from train.tasks import get_task
 
 REPO = Path(__file__).resolve().parents[3]
@@ -405,7 +405,7 @@ def test_a_shipped_copy_is_its_source_file_for_file(copy, source):
     if not copy_dir.exists():
         pytest.skip(f"{'/'.join(copy)} is not shipped yet")
     assert source_dir.exists(), f"{copy_dir} is shipped without its source {source_dir}"
-    film = {Path("video.mp4"), Path(VIDEO_INFO), Path(STRIP_NAME)}
+    film = {Path(name) for name in FILM_FILES}
     files = {p.relative_to(source_dir) for p in source_dir.rglob("*") if p.is_file()} - film
     copied = {p.relative_to(copy_dir) for p in copy_dir.rglob("*") if p.is_file()} - film
     assert copied == files

@@ -20,14 +20,11 @@ import numpy as np
 from train.experiments.report.runs import ExperimentResults, Run
 from train.storage.checkpoint import CHECKPOINT_NAME
 from train.storage.fileio import atomic_text, atomic_write, is_temporary
+from train.storage.rundir import FILM_NAME, STRIP_NAME, VIDEO_INFO
 from train.storage.safeio import UnsafeFileError, load_json, no_link_below, read_bytes, regular_file
 
 SMOKE_FILM_STEPS = 40
 """Steps filmed of a run at the smoke budget (seconds of training, for tests: 40 frames show the film works)."""
-VIDEO_INFO = "video.json"
-"""Sidecar of a filmed run's ``video.mp4``: the seed filmed and the episodes solved."""
-STRIP_NAME = "filmstrip.png"
-"""Beside a filmed run's ``video.mp4``: its first episode as a row of frames (the paper's Fig. 11-12)."""
 
 
 def best_seed(run: Run) -> int:
@@ -64,7 +61,7 @@ def render_missing_videos(exp: ExperimentResults, root: Path | None = None) -> l
     made = []
     steps = SMOKE_FILM_STEPS if exp.info.get("budget") == "smoke" else None
     for run in exp.runs:
-        target = run.path / "video.mp4"
+        target = run.path / FILM_NAME
         exported = run.path / RUN_POLICIES_DIR / "best.npz"
         has_checkpoint = (run.path / CHECKPOINT_NAME).exists()
         if run.done and not _film_is_current(run, target) and (has_checkpoint or exported.is_file()):
@@ -131,9 +128,9 @@ def h264_codec(mp4: Path) -> str | None:
 
 def caption_of(video: Path, root: Path) -> str:
     """Where the video comes from and, from its sidecar, the seed filmed and how its episodes went."""
-    where = video.parent.relative_to(root).as_posix() if video.name == "video.mp4" else video.name
+    where = video.parent.relative_to(root).as_posix() if video.name == FILM_NAME else video.name
     try:
-        info = load_json(video.with_name(VIDEO_INFO)) if video.name == "video.mp4" else {}
+        info = load_json(video.with_name(VIDEO_INFO)) if video.name == FILM_NAME else {}
     except (OSError, ValueError):
         info = {}
     if not isinstance(info, dict) or "seed" not in info:
@@ -201,7 +198,7 @@ def web_copy(video: Path, out_dir: Path, name: str, caption: str, source: Path |
         return None
     poster = atomic_write(out_dir / f"{name}.png", png.tobytes())
     source = source or video
-    strip = source.with_name(STRIP_NAME) if source.name == "video.mp4" else None
+    strip = source.with_name(STRIP_NAME) if source.name == FILM_NAME else None
     copied = None
     if strip is not None and os.path.lexists(strip):
         try:
