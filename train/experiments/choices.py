@@ -76,7 +76,6 @@ default since 2026-12-06; a random policy is caught on 4 569 steps per 20 000 un
 original's)."""
 
 CURRENT_FREE_RUNS = frozenset({
-    "factory-make-axe/factory/env-shaping-sparse",
     "factory-make-axe/factory/env-shaping-subgoal",
 })
 """The conditions (experiment/task/condition) whose shipped runs trained hunting's deer or factory's workers with
