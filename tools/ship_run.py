@@ -24,8 +24,8 @@ import statistics
 import sys
 from pathlib import Path
 
+from train.experiments.jobs import RESULT_FILES, clear_run_files
 from train.experiments.report.figures import heatmap_snapshot_files
-from train.storage.rundir import FILM_FILES
 
 COPIED_FILES = ("config.json", "done.json", "metrics.csv", "visits.npy")
 
@@ -49,14 +49,12 @@ def ship(run_dir: Path, dest: Path) -> None:
 
 
 def clear_replaced_run(dest: Path) -> None:
-    """Remove what a run shipped earlier to ``dest`` leaves that the new run would not overwrite: its policies and
-    heat-map snapshots, and its film (`ecorl report` keeps a film made at the run's last step, and a re-run ends at
-    the same step: the old film would stay, showing the old run).
+    """Remove every result of a run shipped earlier to ``dest`` (`RESULT_FILES`, what ``--restart`` clears), so that
+    none outlives it: the new run would not overwrite all its policies and heat-map snapshots, nor its film
+    (`ecorl report` keeps a film made at the run's last step, and a re-run ends at the same step).
     """
-    for folder in ("policies", "visits"):
-        shutil.rmtree(dest / folder, ignore_errors=True)
-    for name in FILM_FILES:
-        (dest / name).unlink(missing_ok=True)
+    if dest.is_dir():
+        clear_run_files(dest, RESULT_FILES)
 
 
 def read_seeds(metrics_csv: Path) -> dict[int, list[dict[str, float]]]:

@@ -182,8 +182,15 @@ def _clear_unstarted(job: Job) -> None:
             f"{job.name} holds results ({', '.join(results)}) but no {CHECKPOINT_NAME} to continue them from; "
             f"they are kept as they are. To train it again from scratch (deleting them), re-run with "
             f"--restart {job.condition}")
+    clear_run_files(run_dir, clear)
+
+
+def clear_run_files(run_dir: Path, names: set[str] | tuple[str, ...]) -> None:
+    """Delete the entries of ``run_dir`` named in ``names`` and ecorl's temporaries there (a link itself, never
+    what it points to); nothing else.
+    """
     for p in run_dir.iterdir():
-        if p.name in clear or is_temporary(p.name):
+        if p.name in names or is_temporary(p.name):
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
 
 

@@ -393,7 +393,7 @@ def test_dry_run_says_a_folder_holding_foreign_files_will_fail(capsys, tmp_path)
 
 def test_a_finished_run_is_done_whatever_else_its_folder_holds(capsys, tmp_path):
     """A shipped run (no checkpoint; the report's film beside it, a note of the user's) was planned as a clash, as
-    if it would start afresh; a restart clears the film with the run and still stops at the user's file.
+    if it would start afresh; under a restart only the user's file is foreign (the film is the run's, cleared with it).
     """
     import json
 
