@@ -29,7 +29,6 @@ from typing import Any
 from train.config import TrainConfig
 from train.config.checks import unknown_choice
 from train.experiments.choices import (
-    CURRENT_FREE_RUNS,
     DYNAMIC_P,
     GRID_TASKS,
     PAPER_STEPS,
@@ -40,7 +39,6 @@ from train.experiments.choices import (
     SHIPPED_RULES,
     SPARSE_EQUIVALENT,
     TUNED,
-    shipped_rules,
 )
 from train.experiments.conditions import (
     FLAT_LADDER,
@@ -55,7 +53,7 @@ from train.experiments.conditions import (
 from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
 from train.experiments.released import released_experiments
 
-__all__ = ["BUDGETS", "CURRENT_FREE_RUNS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS",
+__all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS",
            "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SMOKE",
            "SPARSE_EQUIVALENT", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition", "Experiment", "get_experiment",
            "job_config"]
@@ -66,9 +64,8 @@ __all__ = ["BUDGETS", "CURRENT_FREE_RUNS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TAS
 def job_config(experiment: Experiment, task: str, condition: Condition, budget: Budget) -> TrainConfig:
     """The full `TrainConfig` of one condition of one task at ``budget``."""
     flat: dict[str, Any] = {"task": task, **TUNED.get(task, {}), **condition.overrides}
-    kept = shipped_rules(experiment.name, task, condition.name)
-    if kept:
-        flat["env_kwargs"] = {**kept, **flat.get("env_kwargs", {})}
+    if task in SHIPPED_RULES:
+        flat["env_kwargs"] = {**SHIPPED_RULES[task], **flat.get("env_kwargs", {})}
     flat.update(budget.overrides)
     flat.update(budget.task_overrides.get(task, {}))
     steps = budget.steps_for(task)

@@ -22,11 +22,10 @@ Every experiment of `train.experiments.catalog` builds on them:
   3e-4, chosen as the paper chose it, by a learning-rate sweep (the released salad script sweeps 1e-5 ... 1e-3;
   every other released script fixes 1e-4). The sweep is the ``settings`` experiment; its evidence is in
   docs/fidelity.md ("Trainer settings").
-* task parameters kept as shipped (`shipped_rules`): scavenging's predators are reborn off the agent's cell
-  (``predator_respawn="off-agent"``, `SHIPPED_RULES`) in every experiment, and hunting's and factory's directed
-  steps aim at the agent's cell after its move (``directed_moves="current-free"``) in the conditions whose shipped
-  runs trained so (`CURRENT_FREE_RUNS`), though the environments' defaults are now the original's; so re-running
-  an experiment re-runs what is shipped.
+* task parameters kept as shipped (`SHIPPED_RULES`): scavenging's predators are reborn off the agent's cell
+  (``predator_respawn="off-agent"``) in every experiment, though the environment's default is now the original's;
+  so re-running an experiment re-runs what is shipped. (Hunting's and factory's directed steps were kept so too,
+  per condition, until every run trained under ecorl's earlier rule was re-run under the original's.)
 * evaluation horizon: left to the trainer, which takes each task's test horizon from its test MDP
   (``test_mdp_kwargs()``), whatever the training horizon.
 """
@@ -34,12 +33,11 @@ Every experiment of `train.experiments.catalog` builds on them:
 from __future__ import annotations
 
 from types import MappingProxyType
-from typing import Any
 
 from train.tasks import TASKS
 
-__all__ = ["CURRENT_FREE_RUNS", "DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
-           "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED", "shipped_rules"]
+__all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
+           "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -74,26 +72,6 @@ shipped runs trained with where the environment's default has since become the o
 predators reborn at once off the agent's cell (the original's, one per step and possibly on the agent, is the
 default since 2026-12-06; a random policy is caught on 4 569 steps per 20 000 under the kept rule, 4 882 under the
 original's)."""
-
-CURRENT_FREE_RUNS = frozenset({
-    "factory-make-axe/factory/env-shaping-subgoal",
-})
-"""The conditions (experiment/task/condition) whose shipped runs trained hunting's deer or factory's workers with
-directed steps aimed at the agent's cell after its move, among free cells only (``directed_moves="current-free"``,
-ecorl's rule until 2026-12-07; the original's aims at the cell the agent left and does not take a blocked best
-step, the default since; docs/fidelity.md gives both rules' random-policy numbers). Each keeps that rule until it
-is re-run under the original's and shipped, then leaves this set."""
-
-
-def shipped_rules(experiment: str, task: str, condition: str) -> dict[str, Any]:
-    """The task parameters a condition keeps from its shipped runs (`SHIPPED_RULES`, `CURRENT_FREE_RUNS`), so
-    that re-running an experiment re-runs what is shipped.
-    """
-    rules = dict(SHIPPED_RULES.get(task, {}))
-    if f"{experiment}/{task}/{condition}" in CURRENT_FREE_RUNS:
-        rules["directed_moves"] = "current-free"
-    return rules
-
 
 SHAPING_BASE = MappingProxyType({
     "salad": {"dynamism": 0.05}, "walled-salad": {"dynamism": 0.05},

@@ -22,8 +22,8 @@ off-agent`` in their ``env_kwargs`` (`SHIPPED_RULES`, the rule their shipped run
 only change, and were dumped again. When hunting's and factory's directed steps took the original code's rule as
 their default, the 30 jobs whose creatures take such steps (``shaping``'s five hunting arms, its two factory
 env-shaping arms, ``rnd``'s factory env-shaping arm and ``factory-make-axe``'s two env-shaping arms, at three
-budgets) gained ``directed_moves: current-free`` the same way (`CURRENT_FREE_RUNS`); a condition re-run under the
-original rule and shipped leaves that set, and its jobs lose it again.
+budgets) gained ``directed_moves: current-free`` the same way; a condition re-run under the original rule and
+shipped lost it again, until none kept it.
 """
 
 from __future__ import annotations

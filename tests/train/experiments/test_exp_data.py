@@ -461,27 +461,16 @@ def test_walls_released_is_walls_with_the_released_network():
 
 
 def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_they_act():
-    """`shipped_rules`: the envs' defaults are the original's predator respawn and directed steps; the experiments
-    keep the shipped rules, a condition's own env_kwargs beside them: the respawn on every scavenging condition,
-    the old directed steps on the conditions `CURRENT_FREE_RUNS` names, each of which has creatures that take
-    directed steps (hunting's deer with a speed, factory's shaped workers: elsewhere the rule changes nothing).
+    """`SHIPPED_RULES`: the envs' default is the original's predator respawn; every scavenging condition keeps the
+    shipped one beside its own env_kwargs, and no condition of any task sets anything else (its directed steps
+    included: every shipped run trained with the original's).
     """
-    from ecology import parse_schedule
-    from train.experiments.catalog import CURRENT_FREE_RUNS
-
-    seen = set()
     for exp in EXPERIMENTS.values():
         for task, conditions in exp.conditions.items():
             for c in conditions:
                 if c.measure:
                     continue
-                cfg = job_config(exp, task, c, exp.budget("smoke"))
-                kwargs, own = cfg.env.env_kwargs, c.overrides.get("env_kwargs", {})
+                kwargs = job_config(exp, task, c, exp.budget("smoke")).env.env_kwargs
                 kept = {"predator_respawn": "off-agent"} if task == "scavenging" else {}
-                if f"{exp.name}/{task}/{c.name}" in CURRENT_FREE_RUNS:
-                    seen.add(f"{exp.name}/{task}/{c.name}")
-                    assert (task == "hunting" and kwargs.get("deer_speed", 0.0) > 0) or (
-                        task == "factory" and not parse_schedule(cfg.env.shaping).is_zero), (exp.name, task, c.name)
-                    kept |= {"directed_moves": "current-free"}
-                assert kwargs == {**own, **kept}, (exp.name, task, c.name)
-    assert seen == CURRENT_FREE_RUNS  # no name in it that the catalog lacks
+                assert kwargs == {**c.overrides.get("env_kwargs", {}), **kept}, (exp.name, task, c.name)
+                assert "directed_moves" not in kwargs, (exp.name, task, c.name)

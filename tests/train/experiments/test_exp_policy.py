@@ -328,24 +328,16 @@ def test_shipped_scavenging_runs_name_the_predator_respawn_they_trained_with():
             assert policy.test_kwargs["predator_respawn"] == "off-agent", path
 
 
-def test_shipped_runs_whose_creatures_take_directed_steps_name_the_rule_they_trained_with():
-    """Hunting's hard deer and factory's shaped workers that trained before the original's directed steps became
-    the default (docs/fidelity.md): exactly the runs `CURRENT_FREE_RUNS` names, their configs and policies saying
-    ``current-free``; every other shipped run names no rule (it trained with the default).
+def test_every_shipped_run_trained_with_the_original_directed_steps():
+    """Hunting's deer and factory's workers: every shipped run trained under the original's directed steps, the
+    default (docs/fidelity.md), so no config or policy names another rule (those trained under ecorl's earlier
+    one, ``current-free``, were re-run and replaced).
     """
-    from ecology import parse_schedule
-    from train.experiments.catalog import CURRENT_FREE_RUNS
-
     root = Path(__file__).resolve().parents[3] / "docs/results"
-    named = set()
-    for path in sorted(root.rglob("config.json")):
+    configs = sorted(root.rglob("config.json"))
+    assert configs
+    for path in configs:
         env = TrainConfig.from_dict(json.loads(path.read_text())).env
-        if "directed_moves" not in env.env_kwargs:
-            continue
-        named.add(path.parent.relative_to(root / "paper").as_posix())
-        assert (env.task == "hunting" and env.env_kwargs.get("deer_speed", 0.0) > 0) or (
-            env.task == "factory" and not parse_schedule(env.shaping).is_zero), path
-        assert env.env_kwargs["directed_moves"] == "current-free", path
+        assert env.env_kwargs.get("directed_moves", "original") == "original", path
         for policy in (path.parent / "policies").glob("*.npz"):
-            assert load_policy_file(policy).test_kwargs["directed_moves"] == "current-free", policy
-    assert named == CURRENT_FREE_RUNS
+            assert load_policy_file(policy).test_kwargs.get("directed_moves", "original") == "original", policy
