@@ -12,8 +12,8 @@ and steps every condition gets and how often it is evaluated:
 Smaller budgets run the paper's conditions unchanged, only shorter and with fewer seeds: a quick curve is
 the beginning of the paper's curve (the exploration decay and the shaping schedules keep the paper's clock;
 with epsilon decaying over 15 000 steps instead of 90 000, dynamic episodic salad solved ~1% of the layouts
-after 120 000 steps instead of ~17%, 3 seeds). `job_config` builds the `TrainConfig` of one (experiment, task,
-condition, budget).
+after 120 000 steps instead of ~17%, 3 seeds). `job_config` builds the `TrainConfig` of one (task, condition,
+budget) of an experiment.
 
 The values the paper leaves open (each task's dynamic p, shaping schedule and base task, the tuned trainer
 settings, the steps per seed) are in `train.experiments.choices`, with where each comes from.
@@ -61,8 +61,10 @@ __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "
 # ---- building configs ----------------------------------------------------------------------------------
 
 
-def job_config(experiment: Experiment, task: str, condition: Condition, budget: Budget) -> TrainConfig:
-    """The full `TrainConfig` of one condition of one task at ``budget``."""
+def job_config(task: str, condition: Condition, budget: Budget) -> TrainConfig:
+    """The full `TrainConfig` of one condition of one task at ``budget`` (the task's tuned settings, then the
+    condition's, then the budget's: a later one wins).
+    """
     flat: dict[str, Any] = {"task": task, **TUNED.get(task, {}), **condition.overrides}
     if task in SHIPPED_RULES:
         flat["env_kwargs"] = {**SHIPPED_RULES[task], **flat.get("env_kwargs", {})}

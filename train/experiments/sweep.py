@@ -67,7 +67,7 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
                 config = {"measure": cond.measure, "task": task, "seeds": budget.seeds, "steps": n_steps}
                 jobs.append(Job(experiment.name, task, cond.name, run_dir, config, budget.seeds * n_steps / 20))
             else:
-                cfg = job_config(experiment, task, cond, budget)
+                cfg = job_config(task, cond, budget)
                 cfg = cfg.replace(device=device) if device else cfg
                 cfg = cfg.replace(first_seed=first_seed) if first_seed else cfg
                 cfg.check_trains()

@@ -65,6 +65,6 @@ def test_every_job_builds_the_same_config(name):
                 if c.measure:
                     jobs[key] = {"measure": c.measure, "seeds": b.seeds, "steps": b.steps_for(task)}
                 else:
-                    flat = _flat(job_config(exp, task, c, b))
+                    flat = _flat(job_config(task, c, b))
                     jobs[key] = {k: v for k, v in flat.items() if v != GOLDEN["defaults"][k]}
     assert jobs == golden["jobs"]

@@ -32,7 +32,7 @@ def _paper_config(exp_name: str, task: str, condition: str) -> TrainConfig:
     """The config that ``ecorl run EXP_NAME --budget paper`` builds for one condition of one task."""
     exp = get_experiment(exp_name)
     cond = {c.name: c for c in exp.conditions[task]}[condition]
-    return job_config(exp, task, cond, exp.budget("paper"))
+    return job_config(task, cond, exp.budget("paper"))
 
 SPEC_TABLE = {  # name: (paper seeds, {task: steps}) from SPEC's experiment table
     "episodic-vs-reset-free": (10, {"salad": 1_000_000}),
@@ -75,7 +75,7 @@ def test_every_condition_builds_a_valid_config(budget, tmp_path):
             assert Path(job.run_dir) == tmp_path.resolve() / exp.name / job.task / job.condition
             if job.is_measurement:
                 continue
-            cfg = job_config(exp, job.task, next(c for c in exp.conditions[job.task] if c.name == job.condition),
+            cfg = job_config(job.task, next(c for c in exp.conditions[job.task] if c.name == job.condition),
                              exp.budget(budget))
             assert cfg.to_dict() == job.config
             # the trainer reads the test MDP's horizon, but where a released validation was shorter
@@ -121,7 +121,7 @@ def test_shaping_conditions_follow_the_paper():
             assert c.overrides["reset_free"] is True
             assert ("shaping" in c.overrides) == c.name.startswith("env-shaping")
     hunting = exp.conditions["hunting"][0]
-    cfg = job_config(exp, "hunting", hunting, exp.budget("paper"))
+    cfg = job_config("hunting", hunting, exp.budget("paper"))
     assert cfg.env.env_kwargs == {"deer_kind": "hard", "deer_speed": 0.2}  # the original directed steps (re-run)
     assert cfg.env.shaping == SHAPING_SCHEDULE["hunting"]
     assert {c.overrides["dynamism"] for c in exp.conditions["salad"]} == {0.05}
@@ -198,11 +198,11 @@ def test_tuned_settings_apply_per_task_and_conditions_still_win():
     """
     assert TrainConfig().dqn.lr == 1e-4  # the original code's default, unchanged for `ecorl train`
     dyn = get_experiment("dynamism")
-    lrs = {task: job_config(dyn, task, conds[0], dyn.budget("smoke")).dqn.lr for task, conds in dyn.conditions.items()}
+    lrs = {task: job_config(task, conds[0], dyn.budget("smoke")).dqn.lr for task, conds in dyn.conditions.items()}
     assert lrs == {"salad": 3e-4, "hunting": 1e-4, "scavenging": 1e-4, "factory": 1e-4, "foodcollector": 1e-4}
     settings = get_experiment("settings")
     arm = next(c for c in settings.conditions["salad"] if c.name == "rf-lr1e-4")
-    assert job_config(settings, "salad", arm, settings.budget("smoke")).dqn.lr == 1e-4
+    assert job_config("salad", arm, settings.budget("smoke")).dqn.lr == 1e-4
 
 
 def test_headline_waypoint_is_the_headline_with_the_released_reward():
@@ -212,12 +212,12 @@ def test_headline_waypoint_is_the_headline_with_the_released_reward():
     plain, waypoint = get_experiment("headline"), get_experiment("headline-waypoint")
     for a, b in zip(plain.conditions["salad"], waypoint.conditions["salad"], strict=True):
         assert a.name == b.name and {**a.overrides, "reward": "waypoint"} == b.overrides
-        assert job_config(plain, "salad", a, plain.budget("paper")).env.reward == "sparse"
+        assert job_config("salad", a, plain.budget("paper")).env.reward == "sparse"
     settings = get_experiment("settings")
     for exp, arm_name in ((plain, "rf-lr3e-4"), (waypoint, "rf-waypoint")):
         arm = next(c for c in settings.conditions["salad"] if c.name == arm_name)
-        study = job_config(settings, "salad", arm, settings.budget("paper"))
-        long = job_config(exp, "salad", exp.conditions["salad"][3], exp.budget("paper"))
+        study = job_config("salad", arm, settings.budget("paper"))
+        long = job_config("salad", exp.conditions["salad"][3], exp.budget("paper"))
         assert exp.conditions["salad"][3].name == "dynamic-reset-free"
         assert long.replace(steps=study.run.steps) == study, arm_name
 
@@ -236,8 +236,8 @@ def test_the_dynamism_sweep_repeats_fig_4s_non_episodic_pair(sweep_name, fig4, t
     Fig. 4's conditions.
     """
     sweep, panel = get_experiment(sweep_name), get_experiment(fig4)
-    ours = {c.name: job_config(sweep, task, c, sweep.budget("paper")) for c in sweep.conditions[task]}
-    theirs = {c.name: job_config(panel, task, c, panel.budget("paper")) for c in panel.conditions[task]}
+    ours = {c.name: job_config(task, c, sweep.budget("paper")) for c in sweep.conditions[task]}
+    theirs = {c.name: job_config(task, c, panel.budget("paper")) for c in panel.conditions[task]}
     for name, config in ours.items():
         if name in same:
             assert config == theirs[same[name]], name
@@ -255,8 +255,8 @@ def test_dynamism_waypoint_is_fig_4_with_the_released_reward():
         ours = {c.name: c for c in waypoint.conditions[task]}
         assert list(ours) == [c.name for c in fig4.conditions[task]]
         for cond in fig4.conditions[task]:
-            plain = job_config(fig4, task, cond, fig4.budget("paper"))
-            released = job_config(waypoint, task, ours[cond.name], waypoint.budget("paper"))
+            plain = job_config(task, cond, fig4.budget("paper"))
+            released = job_config(task, ours[cond.name], waypoint.budget("paper"))
             assert plain.env.reward == "sparse" and released.env.reward == "waypoint"
             # factory keeps the flat ladder its shipped runs trained with ('factory-released' has the released one)
             flat = {"env_kwargs": {}} if task == "factory" else {}
@@ -281,12 +281,12 @@ def test_lr_sweep_repeats_the_arms_it_shares_a_rate_with():
     """
     sweep = get_experiment("lr-sweep")
     arms = {c.name: c for c in sweep.conditions["salad"]}
-    assert sorted({job_config(sweep, "salad", c, sweep.budget("paper")).dqn.lr for c in arms.values()}) == [
+    assert sorted({job_config("salad", c, sweep.budget("paper")).dqn.lr for c in arms.values()}) == [
         1e-5, 3e-5, 1e-4, 3e-4, 1e-3]
     for name, (other, other_arm) in {"ep-lr1e-4": ("salad-gap", "ep-lr1e-4"), "rf-lr1e-4": ("salad-gap", "rf-lr1e-4"),
                                      "ep-lr3e-4": ("settings", "ep-h100-waypoint"),
                                      "rf-lr3e-4": ("settings", "rf-waypoint")}.items():
-        assert job_config(sweep, "salad", arms[name], sweep.budget("paper")) == \
+        assert job_config("salad", arms[name], sweep.budget("paper")) == \
             _paper_config(other, "salad", other_arm), name
 
 
@@ -297,7 +297,7 @@ def test_shaping_no_shaping_salad_is_the_sparse_sweeps_p0_05_run_longer():
     """
     shaping = get_experiment("shaping")
     p005 = _paper_config("dynamism-sweep", "salad", "p0.05")
-    ours = {c.name: job_config(shaping, "salad", c, shaping.budget("paper")) for c in shaping.conditions["salad"]}
+    ours = {c.name: job_config("salad", c, shaping.budget("paper")) for c in shaping.conditions["salad"]}
     assert (p005.run.steps, ours["no-shaping"].run.steps) == (1_000_000, 1_250_000)
     assert ours["no-shaping"].replace(steps=p005.run.steps) == p005
     assert all(cfg.replace(steps=p005.run.steps) != p005 for name, cfg in ours.items() if name != "no-shaping")
@@ -333,8 +333,8 @@ def test_shaping_gap_arms_are_fig_5s_salad_arms_with_one_setting_changed():
     setting changed: the released script's longer spawn windows, or its learning rate.
     """
     gap, fig5 = get_experiment("shaping-gap"), get_experiment("shaping")
-    ours = {c.name: job_config(gap, "salad", c, gap.budget("paper")) for c in gap.conditions["salad"]}
-    theirs = {c.name: job_config(fig5, "salad", c, fig5.budget("paper")) for c in fig5.conditions["salad"]}
+    ours = {c.name: job_config("salad", c, gap.budget("paper")) for c in gap.conditions["salad"]}
+    theirs = {c.name: job_config("salad", c, fig5.budget("paper")) for c in fig5.conditions["salad"]}
     shaped, plain = theirs["env-shaping-sparse"], theirs["no-shaping"]
     assert ours["env-shaping-560k"] == shaped.replace(shaping=RELEASED_SALAD_SCHEDULES["560k"])
     assert ours["env-shaping-840k"] == shaped.replace(shaping=RELEASED_SALAD_SCHEDULES["840k"])
@@ -349,14 +349,14 @@ def test_hunting_inventory_arms_are_the_shipped_fig_4_runs_with_only_the_invento
         exp = get_experiment(shipped)
         [cond] = [c for c in exp.conditions["hunting"] if c.name == "dynamic-reset-free"]
         [ours] = [c for c in inv.conditions["hunting"] if c.name == arm]
-        theirs = job_config(exp, "hunting", cond, exp.budget("paper"))
+        theirs = job_config("hunting", cond, exp.budget("paper"))
         assert theirs.dqn.inventory_repeat == 1
-        assert job_config(inv, "hunting", ours, inv.budget("paper")) == theirs.replace(inventory_repeat=8)
+        assert job_config("hunting", ours, inv.budget("paper")) == theirs.replace(inventory_repeat=8)
 
 
 def test_make_axe_released_input_arm_is_its_dynamic_non_episodic_arm_with_only_the_inventory_read_8_times():
     exp = get_experiment("factory-make-axe")
-    arms = {c.name: job_config(exp, "factory", c, exp.budget("paper")) for c in exp.conditions["factory"]}
+    arms = {c.name: job_config("factory", c, exp.budget("paper")) for c in exp.conditions["factory"]}
     assert arms["dynamic-reset-free"].dqn.inventory_repeat == 1
     assert arms["dynamic-reset-free-inv8"] == arms["dynamic-reset-free"].replace(inventory_repeat=8)
 
@@ -414,8 +414,8 @@ def test_a_shipped_copy_is_its_source_file_for_file(copy, source):
 
 def test_salad_shaping_released_arms_are_fig_5s_with_only_the_rate_and_the_inventory_changed():
     released, paper = get_experiment("salad-shaping-released"), get_experiment("shaping")
-    shipped = {c.name: job_config(paper, "salad", c, paper.budget("paper")) for c in paper.conditions["salad"]}
-    arms = {c.name: job_config(released, "salad", c, released.budget("paper")) for c in released.conditions["salad"]}
+    shipped = {c.name: job_config("salad", c, paper.budget("paper")) for c in paper.conditions["salad"]}
+    arms = {c.name: job_config("salad", c, released.budget("paper")) for c in released.conditions["salad"]}
     assert list(arms) == ["env-shaping-sparse", "no-shaping", "distance-reward", "one-time-reward"]
     for name, cfg in arms.items():
         assert (shipped[name].dqn.lr, shipped[name].dqn.inventory_repeat) == (3e-4, 1)
@@ -424,7 +424,7 @@ def test_salad_shaping_released_arms_are_fig_5s_with_only_the_rate_and_the_inven
 
 def test_scavenging_released_arms_train_the_released_world_and_differ_in_the_spawn_window_alone():
     exp = get_experiment("scavenging-released")
-    arms = {c.name: job_config(exp, "scavenging", c, exp.budget("paper")) for c in exp.conditions["scavenging"]}
+    arms = {c.name: job_config("scavenging", c, exp.budget("paper")) for c in exp.conditions["scavenging"]}
     plain = arms.pop("no-shaping")
     assert (plain.env.dynamism, plain.env.env_kwargs, plain.env.reset_free, plain.env.reward) == (
         0.25, {"predator_respawn": "off-agent", "food_growth": 0.2}, True, "sparse")  # off-agent: SHIPPED_RULES
@@ -440,8 +440,8 @@ def test_scavenging_released_arms_train_the_released_world_and_differ_in_the_spa
 def test_scavenging_released_fig4_is_fig_4_in_the_released_world_with_the_sweeps_dynamism():
     exp, world = get_experiment("scavenging-released-fig4"), get_experiment("scavenging-released")
     [plain] = world.select_conditions("scavenging", ["no-shaping"])
-    released = job_config(world, "scavenging", plain, world.budget("paper"))
-    arms = {c.name: job_config(exp, "scavenging", c, exp.budget("paper")) for c in exp.conditions["scavenging"]}
+    released = job_config("scavenging", plain, world.budget("paper"))
+    arms = {c.name: job_config("scavenging", c, exp.budget("paper")) for c in exp.conditions["scavenging"]}
     assert arms["dynamic-reset-free"] == released.replace(dynamism=0.4)
     assert arms["static-reset-free"] == released.replace(dynamism=0.0)
     for name in ("static", "dynamic"):
@@ -454,8 +454,8 @@ def test_walls_released_is_walls_with_the_released_network():
     exp, paper = get_experiment("walls-released"), get_experiment("walls")
     assert [c.name for c in exp.conditions["walled-salad"]] == [c.name for c in paper.conditions["walled-salad"]]
     for ours, theirs in zip(exp.conditions["walled-salad"], paper.conditions["walled-salad"]):
-        released = job_config(exp, "walled-salad", ours, exp.budget("paper"))
-        shipped = job_config(paper, "walled-salad", theirs, paper.budget("paper"))
+        released = job_config("walled-salad", ours, exp.budget("paper"))
+        shipped = job_config("walled-salad", theirs, paper.budget("paper"))
         assert released.dqn.inventory_repeat == 8 and shipped.dqn.inventory_repeat == 1
         assert released == shipped.replace(inventory_repeat=8)
 
@@ -470,7 +470,7 @@ def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_th
             for c in conditions:
                 if c.measure:
                     continue
-                kwargs = job_config(exp, task, c, exp.budget("smoke")).env.env_kwargs
+                kwargs = job_config(task, c, exp.budget("smoke")).env.env_kwargs
                 kept = {"predator_respawn": "off-agent"} if task == "scavenging" else {}
                 assert kwargs == {**c.overrides.get("env_kwargs", {}), **kept}, (exp.name, task, c.name)
                 assert "directed_moves" not in kwargs, (exp.name, task, c.name)

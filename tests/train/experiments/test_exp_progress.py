@@ -119,7 +119,7 @@ def test_speed_is_measured_in_as_many_processes_as_will_train_side_by_side():
     from train.experiments.timebox import measure_speed_together
 
     exp = get_experiment("headline-waypoint")
-    config = job_config(exp, "salad", exp.conditions["salad"][1], SMOKE).to_dict()
+    config = job_config("salad", exp.conditions["salad"][1], SMOKE).to_dict()
     together = measure_speed_together(config, 2)
     assert together.random_epoch_s > 0 and together.greedy_epoch_s >= together.random_epoch_s
     assert together.evaluation_s > 0 and together.startup_s > 0
