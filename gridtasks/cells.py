@@ -106,7 +106,8 @@ def place_random(w, n: int, code: int, x0: int, y0: int, x1: int, y1: int, ax: i
 
 @nb.njit(cache=True)
 def spawn(w, r, group: int, near: bool, s: float) -> bool:
-    """Add one object of ``group``: anywhere, or inside the shaping window around the agent if ``near``.
+    """Add one object of ``group``: anywhere, or inside the shaping window around the agent if ``near``
+    (``r.shifted_window``: `SpawnRules.spawn_window`).
 
     Never on the agent's start cell (the original's rule, so an object may grow under the agent), or,
     with ``spawn_on_agent`` off, never under the agent.
@@ -124,10 +125,15 @@ def spawn(w, r, group: int, near: bool, s: float) -> bool:
     if not near:
         return place_random(w, n, code, 1, 1, n - 1, n - 1, ex, ey)
     side = window_side(n, s)
-    # The window is shifted (not cut) at the walls so that it always covers side × side interior cells.
-    x0 = max(1, min(w.agent[0] - side // 2, n - 1 - side))
-    y0 = max(1, min(w.agent[1] - side // 2, n - 1 - side))
-    return place_random(w, n, code, x0, y0, min(x0 + side, n - 1), min(y0 + side, n - 1), ex, ey)
+    if r.shifted_window:  # moved inside the wall ring: always side × side interior cells
+        x0 = max(1, min(w.agent[0] - side // 2, n - 1 - side))
+        y0 = max(1, min(w.agent[1] - side // 2, n - 1 - side))
+        return place_random(w, n, code, x0, y0, min(x0 + side, n - 1), min(y0 + side, n - 1), ex, ey)
+    # The original's: the corner at the agent minus half the side, clipped at the grid's edge; the walls in it
+    # are rejected, so beside a wall the window holds fewer interior cells (in a corner, at side 2, one).
+    x0 = max(0, w.agent[0] - side // 2)
+    y0 = max(0, w.agent[1] - side // 2)
+    return place_random(w, n, code, max(x0, 1), max(y0, 1), min(x0 + side, n - 1), min(y0 + side, n - 1), ex, ey)
 
 
 @nb.njit(cache=True)

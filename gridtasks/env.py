@@ -59,6 +59,10 @@ class EpisodeRules:
                 object.__setattr__(self, f.name, bool(getattr(self, f.name)))
 
 
+SPAWN_WINDOWS = ("original", "shifted")
+"""The rules of the shaping window beside a wall (`SpawnRules.spawn_window`)."""
+
+
 @dataclass(frozen=True)
 class SpawnRules(EpisodeRules):
     """Where and how many new objects grow: the original code's rules by default, ours as options.
@@ -73,6 +77,16 @@ class SpawnRules(EpisodeRules):
     count_carried: bool = False
     """Replenishment also counts the carried object. False (original): only the grid counts, so picking up
     the last lettuce grows a new one at once and hunting keeps 2 axes on the grid while one is carried."""
+    spawn_window: str = "original"
+    """Where the shaping window lies beside a wall. 'original' (the original code's rule): its corner is the
+    agent's cell minus half its side, clipped at the grid's edge, and the wall cells in it take nothing, so
+    near a wall it holds fewer interior cells (in a corner a 2-cell window holds only the agent's cell).
+    'shifted' (ecorl's rule until 2026-12-07): moved inside the wall ring, so it always holds side × side
+    interior cells."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        check_choice("spawn_window", self.spawn_window, SPAWN_WINDOWS)
 
 
 DIRECTED_MOVES = ("original", "current-free")
@@ -181,6 +195,7 @@ class GridTaskEnv(gym.Env):
         if isinstance(self.config, SpawnRules):
             r["spawn_on_agent"] = self.config.spawn_on_agent
             r["count_carried"] = self.config.count_carried
+            r["shifted_window"] = self.config.spawn_window == "shifted"
         if isinstance(self.config, EpisodeRules):
             r["replay_unsolved"] = self.config.replay_unsolved
         self.fill_rules(r)

@@ -28,6 +28,9 @@ SETTINGS: dict[str, tuple[str, dict]] = {
     "salad p=0.05": ("salad", {"dynamism": 0.05}),
     "salad p=0.1": ("salad", {"dynamism": 0.1}),
     "salad p=0.5": ("salad", {"dynamism": 0.5}),
+    # the released Fig. 5 salad's environment shaping, place_schedule (40 000, 20 000): a window 2 cells wide for the
+    # first 20 000 steps, 3 for the next 20 000, ...
+    "salad p=0.05 window": ("salad", {"dynamism": 0.05, "shaping": "linear:1:0:280000"}),
     "hunting move=0": ("hunting", {"dynamism": 0.0}),
     "hunting move=0.2": ("hunting", {"dynamism": 0.2}),
     "factory move=0.2": ("factory", {"dynamism": 0.2}),
@@ -38,6 +41,11 @@ SETTINGS: dict[str, tuple[str, dict]] = {
     "factory coop=1": ("factory", {"shaping": 1.0}),
     "hunting hard deer=0.2": ("hunting", {"deer_kind": "hard", "deer_speed": 0.2}),  # the shaping experiments' deer
     "scavenging p=0.25": ("scavenging", {"dynamism": 0.25}),
+    # the released Fig. 5 hunting and scavenging environment shaping (the windows of `hunting-released` and
+    # `scavenging-released`): place_schedule (60 000, 20 000) on 8x8 and (60 000, 30 000) on 10x10
+    "hunting p=0.1 window": ("hunting", {"dynamism": 0.1, "shaping": "linear:0.928571428571:0:260000",
+                                         "shaping_mechanism": "nearby"}),
+    "scavenging p=0.25 window": ("scavenging", {"dynamism": 0.25, "food_growth": 0.2, "shaping": "linear:1:0:540000"}),
 }
 """The settings the fidelity table reports: name -> (task, knobs)."""
 

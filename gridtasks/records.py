@@ -117,6 +117,7 @@ def rules_dtype(n: int) -> np.dtype:
             ("creatures_before_hands", np.bool_),  # creatures move before pick-up / place (hunting)
             ("spawn_on_agent", np.bool_),  # new objects may grow under the agent (not on its start cell)
             ("count_carried", np.bool_),  # replenishment counts the carried object too
+            ("shifted_window", np.bool_),  # the spawn window is shifted inside the wall ring (not clipped)
             ("waypoint_repeats", np.bool_),  # waypoint mode pays every pick-up / product, not once a cycle
             ("replay_unsolved", np.int64),  # episodic: replay an unsolved layout within collections this long
             ("directed", np.int64, (NC,)),  # +1 steps toward the agent, -1 away, 0 never

@@ -100,7 +100,10 @@ class SaladEnv(GridTaskEnv):
     lettuce grows one at once; ``count_carried`` changes this) and an ingredient may grow under the agent
     (never on its start cell; ``spawn_on_agent=False`` forbids it).
     shaping s(t): new ingredients grow inside a square around the agent whose side shrinks from the whole
-    grid (s=0) to 2 cells (s=1); side = 2 + floor((1 - s)·(2n - 2)).
+    grid (s=0) to 2 cells (s=1); side = 2 + floor((1 - s)·(2n - 2)). Its top-left cell is the agent's minus
+    side // 2, clipped at the grid's edge, and its wall cells take nothing, so beside a wall it holds fewer
+    cells (in a corner a 2-cell window holds only the agent's own), as in the original
+    (``spawn_window="shifted"`` moves it inside the wall ring instead).
     Test MDP: 1 lettuce and 1 carrot, nothing grows or withers, horizon 100 (walled: 500).
     """
 

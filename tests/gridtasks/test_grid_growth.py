@@ -381,14 +381,29 @@ def test_full_shaping_grows_ingredients_only_in_the_2_cell_window(agent):
     assert spawn_cells(env, agent, 300, 1.0) == window
 
 
-@pytest.mark.parametrize(("agent", "window"), [
-    ((1, 1), {(1, 1), (2, 1), (1, 2), (2, 2)}),
-    ((5, 1), {(4, 1), (5, 1), (4, 2), (5, 2)}),
-    ((1, 4), {(1, 3), (2, 3), (1, 4), (2, 4)}),
+@pytest.mark.parametrize(("agent", "original", "shifted"), [
+    ((1, 1), {(1, 1)}, {(1, 1), (2, 1), (1, 2), (2, 2)}),
+    ((5, 1), {(4, 1), (5, 1)}, {(4, 1), (5, 1), (4, 2), (5, 2)}),
+    ((1, 4), {(1, 3), (1, 4)}, {(1, 3), (2, 3), (1, 4), (2, 4)}),
 ])
-def test_full_shaping_window_is_shifted_inside_the_walls_in_a_corner(agent, window):
-    env = salad(dynamism=0.0, shaping=1.0, regrow_when_empty=True)
-    assert spawn_cells(env, agent, 300, 1.0) == window
+def test_full_shaping_window_beside_a_wall(agent, original, shifted):
+    """The original clips the 2-cell window at the grid's edge, its wall cells taking nothing (in a corner only the
+    agent's cell is left); ``spawn_window="shifted"`` moves it inside the wall ring instead.
+    """
+    assert spawn_cells(salad(dynamism=0.0, shaping=1.0, regrow_when_empty=True), agent, 300, 1.0) == original
+    env = salad(dynamism=0.0, shaping=1.0, regrow_when_empty=True, spawn_window="shifted")
+    assert spawn_cells(env, agent, 300, 1.0) == shifted
+
+
+@pytest.mark.parametrize("rule", ["original", "shifted"])
+def test_a_side_4_window_at_the_far_walls(rule):
+    """Agent at (5, 4) of 7×7, side 4: the original's window starts at (3, 2) and is cut by the walls (3 × 4 cells,
+    the carrot's taken), the shifted one starts at (2, 2) (4 × 4).
+    """
+    env = salad(dynamism=0.0, shaping=1.0, regrow_when_empty=True, spawn_window=rule)
+    x0 = 3 if rule == "original" else 2
+    window = {(x, y) for x in range(x0, 6) for y in range(2, 6)} - {(5, 5)}
+    assert spawn_cells(env, (5, 4), 1500, 5 / 6) == window
 
 
 def test_intermediate_shaping_window_side_4():

@@ -37,8 +37,10 @@ from train.experiments.choices import (
     SHAPING_BASE,
     SHAPING_SCHEDULE,
     SHIPPED_RULES,
+    SHIPPED_WINDOW,
     SPARSE_EQUIVALENT,
     TUNED,
+    shaping_window_acts,
 )
 from train.experiments.conditions import (
     FLAT_LADDER,
@@ -54,7 +56,7 @@ from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
 from train.experiments.released import released_experiments
 
 __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS",
-           "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SMOKE",
+           "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SHIPPED_WINDOW", "SMOKE",
            "SPARSE_EQUIVALENT", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition", "Experiment", "get_experiment",
            "job_config"]
 
@@ -68,6 +70,8 @@ def job_config(task: str, condition: Condition, budget: Budget) -> TrainConfig:
     flat: dict[str, Any] = {"task": task, **TUNED.get(task, {}), **condition.overrides}
     if task in SHIPPED_RULES:
         flat["env_kwargs"] = {**SHIPPED_RULES[task], **flat.get("env_kwargs", {})}
+    if shaping_window_acts(task, flat.get("shaping", 0.0), flat.get("env_kwargs", {})):
+        flat["env_kwargs"] = {**SHIPPED_WINDOW, **flat.get("env_kwargs", {})}
     flat.update(budget.overrides)
     flat.update(budget.task_overrides.get(task, {}))
     steps = budget.steps_for(task)

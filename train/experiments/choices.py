@@ -24,7 +24,9 @@ Every experiment of `train.experiments.catalog` builds on them:
   docs/fidelity.md ("Trainer settings").
 * task parameters kept as shipped (`SHIPPED_RULES`): scavenging's predators are reborn off the agent's cell
   (``predator_respawn="off-agent"``) in every experiment, though the environment's default is now the original's;
-  so re-running an experiment re-runs what is shipped. (Hunting's and factory's directed steps were kept so too,
+  so re-running an experiment re-runs what is shipped; likewise wherever a shaping window acts, the window is
+  shifted inside the wall ring (``spawn_window="shifted"``, `SHIPPED_WINDOW`), not clipped at the grid's edge as
+  the original's (the default since 2026-12-07). (Hunting's and factory's directed steps were kept so too,
   per condition, until every run trained under ecorl's earlier rule was re-run under the original's.)
 * evaluation horizon: left to the trainer, which takes each task's test horizon from its test MDP
   (``test_mdp_kwargs()``), whatever the training horizon.
@@ -32,12 +34,16 @@ Every experiment of `train.experiments.catalog` builds on them:
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from types import MappingProxyType
+from typing import Any
 
+from ecology.knobs import parse_schedule
 from train.tasks import TASKS
 
 __all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
-           "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED"]
+           "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SHIPPED_WINDOW", "SPARSE_EQUIVALENT", "TUNED",
+           "WINDOW_TASKS", "shaping_window_acts"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -72,6 +78,25 @@ shipped runs trained with where the environment's default has since become the o
 predators reborn at once off the agent's cell (the original's, one per step and possibly on the agent, is the
 default since 2026-12-06; a random policy is caught on 4 569 steps per 20 000 under the kept rule, 4 882 under the
 original's)."""
+
+SHIPPED_WINDOW = MappingProxyType({"spawn_window": "shifted"})
+"""The shaping window's rule every experiment keeps where a window acts (`shaping_window_acts`): shifted inside the
+wall ring, as every shipped environment-shaping run of salad, walled salad, scavenging and hunting's released
+spawns trained with; the original's window, clipped at the grid's edge, is the environments' default since
+2026-12-07 (docs/fidelity.md, "spawn window")."""
+
+WINDOW_TASKS = ("salad", "walled-salad", "scavenging", "hunting")
+"""The tasks whose new objects can grow in a shaping window around the agent."""
+
+
+def shaping_window_acts(task: str, shaping: str | float, env_kwargs: Mapping[str, Any]) -> bool:
+    """Whether a training world of ``task`` with this shaping and these task parameters grows objects in a shaping
+    window: any shaping but none, on salad, walled salad and scavenging; on hunting only with the released
+    spawns (``shaping_mechanism="nearby"``; its default, easy deer, has no window).
+    """
+    if task not in WINDOW_TASKS or parse_schedule(shaping).is_zero:
+        return False
+    return task != "hunting" or env_kwargs.get("shaping_mechanism") == "nearby"
 
 SHAPING_BASE = MappingProxyType({
     "salad": {"dynamism": 0.05}, "walled-salad": {"dynamism": 0.05},

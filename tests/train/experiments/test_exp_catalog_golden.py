@@ -23,7 +23,10 @@ only change, and were dumped again. When hunting's and factory's directed steps 
 their default, the 30 jobs whose creatures take such steps (``shaping``'s five hunting arms, its two factory
 env-shaping arms, ``rnd``'s factory env-shaping arm and ``factory-make-axe``'s two env-shaping arms, at three
 budgets) gained ``directed_moves: current-free`` the same way; a condition re-run under the original rule and
-shipped lost it again, until none kept it.
+shipped lost it again, until none kept it. When the shaping window took the original code's rule (clipped at the
+grid's edge) as its default, the 63 jobs in which a window acts (`shaping_window_acts`: the env-shaping arms of
+salad, walled salad and scavenging, and hunting's released spawns, at three budgets) gained ``spawn_window:
+shifted`` the same way (`SHIPPED_WINDOW`), checked to be the only change.
 """
 
 from __future__ import annotations

@@ -21,8 +21,9 @@ from train.experiments.catalog import (
     get_experiment,
     job_config,
 )
+from train.experiments.choices import shaping_window_acts
 from train.experiments.sweep import plan
-from train.storage.rundir import FILM_FILES
+from train.storage.rundir import FILM_FILES, setting_differences
 from train.tasks import get_task
 
 REPO = Path(__file__).resolve().parents[3]
@@ -433,8 +434,9 @@ def test_scavenging_released_arms_train_the_released_world_and_differ_in_the_spa
     assert plain.dqn.lr == 1e-4 and plain.env.shaping == "0"
     assert {name: cfg.env.shaping for name, cfg in arms.items()} == {
         "env-shaping-540k": "linear:1:0:540000", "env-shaping-1080k": "linear:1:0:1080000"}
-    for cfg in arms.values():
-        assert cfg == plain.replace(shaping=cfg.env.shaping)
+    for cfg in arms.values():  # and the window shifted inside the walls, as they trained (SHIPPED_WINDOW)
+        kept = {"spawn_window": "shifted", **plain.env.env_kwargs}
+        assert cfg == plain.replace(shaping=cfg.env.shaping, env_kwargs=kept)
 
 
 def test_scavenging_released_fig4_is_fig_4_in_the_released_world_with_the_sweeps_dynamism():
@@ -462,8 +464,9 @@ def test_walls_released_is_walls_with_the_released_network():
 
 def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_they_act():
     """`SHIPPED_RULES`: the envs' default is the original's predator respawn; every scavenging condition keeps the
-    shipped one beside its own env_kwargs, and no condition of any task sets anything else (its directed steps
-    included: every shipped run trained with the original's).
+    shipped one beside its own env_kwargs; `SHIPPED_WINDOW`: every condition whose world grows objects in a shaping
+    window keeps the shifted window; no condition of any task sets anything else (its directed steps included:
+    every shipped run trained with the original's).
     """
     for exp in EXPERIMENTS.values():
         for task, conditions in exp.conditions.items():
@@ -472,5 +475,41 @@ def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_th
                     continue
                 kwargs = job_config(task, c, exp.budget("smoke")).env.env_kwargs
                 kept = {"predator_respawn": "off-agent"} if task == "scavenging" else {}
-                assert kwargs == {**c.overrides.get("env_kwargs", {}), **kept}, (exp.name, task, c.name)
+                own = c.overrides.get("env_kwargs", {})
+                if shaping_window_acts(task, job_config(task, c, exp.budget("smoke")).env.shaping, own):
+                    kept["spawn_window"] = "shifted"
+                assert kwargs == {**own, **kept}, (exp.name, task, c.name)
                 assert "directed_moves" not in kwargs, (exp.name, task, c.name)
+
+
+def test_shaping_window_acts_where_objects_grow_near_the_agent():
+    """`SHIPPED_WINDOW` is kept where a window acts: shaped salad, walled salad and scavenging, and hunting's
+    released spawns; not without shaping, nor in hunting's easy-deer shaping or in factory's cooperative workers.
+    """
+    assert shaping_window_acts("salad", "linear:1:0:280000", {})
+    assert shaping_window_acts("walled-salad", 0.5, {})
+    assert shaping_window_acts("scavenging", "linear:1:0:540000", {"predator_respawn": "off-agent"})
+    assert shaping_window_acts("hunting", "linear:1:0:260000", {"shaping_mechanism": "nearby"})
+    assert not shaping_window_acts("hunting", "linear:1:0:100000", {})
+    assert not shaping_window_acts("salad", 0.0, {})
+    assert not shaping_window_acts("factory", "linear:0.2:0:400000", {})
+
+
+def test_every_shipped_run_is_the_run_its_experiment_builds():
+    """Each shipped run directory's config.json has the settings its experiment builds at the paper's budget, so
+    ``ecorl run NAME --budget paper --out docs/results/paper`` takes it as its own run (done, or resumed) and a
+    re-run trains what is shipped (the kept rules included).
+    """
+    root = REPO / "docs/results/paper"
+    checked = 0
+    for exp in EXPERIMENTS.values():
+        for task, conditions in exp.conditions.items():
+            for c in conditions:
+                path = root / exp.name / task / c.name / "config.json"
+                if c.measure or not path.exists():
+                    continue
+                saved = TrainConfig.from_dict(json.loads(path.read_text()))
+                assert setting_differences(saved, job_config(task, c, exp.budget("paper"))) == [], path
+                checked += 1
+    assert checked > 150
+
