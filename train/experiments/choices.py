@@ -80,10 +80,11 @@ default since 2026-12-06; a random policy is caught on 4 569 steps per 20 000 un
 original's)."""
 
 SHIPPED_WINDOW = MappingProxyType({"spawn_window": "shifted"})
-"""The shaping window's rule every experiment keeps where a window acts (`shaping_window_acts`): shifted inside the
-wall ring, as every shipped environment-shaping run of salad, walled salad, scavenging and hunting's released
-spawns trained with; the original's window, clipped at the grid's edge, is the environments' default since
-2026-12-07 (docs/fidelity.md, "spawn window")."""
+"""The shaping window's rule every experiment keeps where a window acts (`shaping_window_acts`), under a condition's
+own ``env_kwargs``: shifted inside the wall ring, as the shipped environment-shaping runs of salad, walled salad,
+scavenging and hunting's released spawns trained with; the original's window, clipped at the grid's edge, is the
+environments' default since 2026-12-07 (docs/fidelity.md, "spawn window"). An arm re-run under the original's names
+``spawn_window="original"`` itself (`train.experiments.released.ORIGINAL_WINDOW`)."""
 
 WINDOW_TASKS = ("salad", "walled-salad", "scavenging", "hunting")
 """The tasks whose new objects can grow in a shaping window around the agent."""
