@@ -99,6 +99,7 @@ def shaping_window_acts(task: str, shaping: str | float, env_kwargs: Mapping[str
         return False
     return task != "hunting" or env_kwargs.get("shaping_mechanism") == "nearby"
 
+
 SHAPING_BASE = MappingProxyType({
     "salad": {"dynamism": 0.05}, "walled-salad": {"dynamism": 0.05},
     "hunting": {"env_kwargs": {"deer_kind": "hard", "deer_speed": 0.2}},

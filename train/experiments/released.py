@@ -24,7 +24,8 @@ claim gets a verdict for both (docs/results/paper/figures.md).
 * ``hunting-inventory``: Fig. 4's dynamic non-episodic hunting as shipped but for the released network's input (the
   inventory read 8 times), under the sparse and the waypoint reward.
 * ``salad-shaping-released``: Fig. 5's salad arms (environment shaping, no shaping, distance and one-time reward
-  shaping) at the released script's learning rate, 1e-4, with the released network's input.
+  shaping) at the released script's learning rate, 1e-4, with the released network's input; its env-shaped arm
+  with the original code's spawn window (`ORIGINAL_WINDOW`).
 * ``scavenging-released``: Fig. 5's scavenging as the released script trained it: predators stepping at random with
   probability 0.25, food also growing with p 0.2, food spawning near the agent over the released windows, validated
   as released (predators at 0.25, one reborn at a random cell each step).
@@ -41,6 +42,8 @@ not the released one (one per step, possibly on the agent), ecorl's default sinc
 """
 
 from __future__ import annotations
+
+from types import MappingProxyType
 
 from train.experiments.choices import DYNAMIC_P, SHAPING_SCHEDULE
 from train.experiments.conditions import (
@@ -243,7 +246,7 @@ def _hunting_inventory() -> Experiment:
         {"hunting": 1_500_000}, 10, {"smoke": SMOKE, "quick": quick(3, 150_000)})
 
 
-ORIGINAL_WINDOW = {"env-shaping-sparse": {"env_kwargs": {"spawn_window": "original"}}}
+ORIGINAL_WINDOW = MappingProxyType({"env-shaping-sparse": {"env_kwargs": {"spawn_window": "original"}}})
 """The arms of `salad-shaping-released` re-run under the original code's spawn window (2026-12-07), which overrides
 the shifted one the experiments keep for the runs trained with it (`SHIPPED_WINDOW`)."""
 
