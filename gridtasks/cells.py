@@ -128,11 +128,9 @@ def spawn(w, r, group: int, near: bool, s: float) -> bool:
     if r.shifted_window:  # moved inside the wall ring: always side × side interior cells
         x0 = max(1, min(w.agent[0] - side // 2, n - 1 - side))
         y0 = max(1, min(w.agent[1] - side // 2, n - 1 - side))
-        return place_random(w, n, code, x0, y0, min(x0 + side, n - 1), min(y0 + side, n - 1), ex, ey)
-    # The original's: the corner at the agent minus half the side, clipped at the grid's edge; the walls in it
-    # are rejected, so beside a wall the window holds fewer interior cells (in a corner, at side 2, one).
-    x0 = max(0, w.agent[0] - side // 2)
-    y0 = max(0, w.agent[1] - side // 2)
+    else:  # the original's: clipped at the grid's edge, its walls taking nothing (in a corner, at side 2, one cell)
+        x0 = max(0, w.agent[0] - side // 2)
+        y0 = max(0, w.agent[1] - side // 2)
     return place_random(w, n, code, max(x0, 1), max(y0, 1), min(x0 + side, n - 1), min(y0 + side, n - 1), ex, ey)
 
 

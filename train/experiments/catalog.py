@@ -40,7 +40,7 @@ from train.experiments.choices import (
     SHIPPED_WINDOW,
     SPARSE_EQUIVALENT,
     TUNED,
-    shaping_window_acts,
+    kept_rules,
 )
 from train.experiments.conditions import (
     FLAT_LADDER,
@@ -68,10 +68,8 @@ def job_config(task: str, condition: Condition, budget: Budget) -> TrainConfig:
     condition's, then the budget's: a later one wins).
     """
     flat: dict[str, Any] = {"task": task, **TUNED.get(task, {}), **condition.overrides}
-    if task in SHIPPED_RULES:
-        flat["env_kwargs"] = {**SHIPPED_RULES[task], **flat.get("env_kwargs", {})}
-    if shaping_window_acts(task, flat.get("shaping", 0.0), flat.get("env_kwargs", {})):
-        flat["env_kwargs"] = {**SHIPPED_WINDOW, **flat.get("env_kwargs", {})}
+    own = flat.get("env_kwargs", {})
+    flat["env_kwargs"] = {**kept_rules(task, flat.get("shaping", 0.0), own), **own}
     flat.update(budget.overrides)
     flat.update(budget.task_overrides.get(task, {}))
     steps = budget.steps_for(task)

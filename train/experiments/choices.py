@@ -43,7 +43,7 @@ from train.tasks import TASKS
 
 __all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
            "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SHIPPED_WINDOW", "SPARSE_EQUIVALENT", "TUNED",
-           "WINDOW_TASKS", "shaping_window_acts"]
+           "WINDOW_TASKS", "kept_rules", "shaping_window_acts"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -98,6 +98,14 @@ def shaping_window_acts(task: str, shaping: str | float, env_kwargs: Mapping[str
     if task not in WINDOW_TASKS or parse_schedule(shaping).is_zero:
         return False
     return task != "hunting" or env_kwargs.get("shaping_mechanism") == "nearby"
+
+
+def kept_rules(task: str, shaping: str | float, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """The task parameters a condition keeps as its shipped runs trained with (`SHIPPED_RULES`, and `SHIPPED_WINDOW`
+    where a shaping window acts), to go under the condition's own ``env_kwargs``.
+    """
+    window = SHIPPED_WINDOW if shaping_window_acts(task, shaping, env_kwargs) else {}
+    return {**SHIPPED_RULES.get(task, {}), **window}
 
 
 SHAPING_BASE = MappingProxyType({

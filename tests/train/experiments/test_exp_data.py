@@ -474,10 +474,11 @@ def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_th
             for c in conditions:
                 if c.measure:
                     continue
-                kwargs = job_config(task, c, exp.budget("smoke")).env.env_kwargs
+                env = job_config(task, c, exp.budget("smoke")).env
+                kwargs = env.env_kwargs
                 kept = {"predator_respawn": "off-agent"} if task == "scavenging" else {}
                 own = c.overrides.get("env_kwargs", {})
-                if shaping_window_acts(task, job_config(task, c, exp.budget("smoke")).env.shaping, own):
+                if shaping_window_acts(task, env.shaping, own):
                     kept["spawn_window"] = "shifted"
                 assert kwargs == {**kept, **own}, (exp.name, task, c.name)  # a condition's own rule wins
                 assert "directed_moves" not in kwargs, (exp.name, task, c.name)
