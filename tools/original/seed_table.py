@@ -26,6 +26,7 @@ import numpy as np
 from compare import BLOWN, ecorl_seeds, released_seeds
 
 from ecology import corner_share
+from train.experiments.report.figures import heatmap_snapshot_files
 from train.experiments.report.stats import LEARNED, collapsed
 from train.storage.rundir import read_visits
 
@@ -94,11 +95,12 @@ def released_visits(seed_dir: Path) -> dict[int, np.ndarray]:
 
 
 def ecorl_visits(run_dir: Path) -> dict[str, dict[int, np.ndarray]]:
-    """Each seed's visit counts (H, W) so far by training step, from an ecorl run's ``visits/STEP.npy`` (seeds x H x
-    W, the first seed ``first_seed`` of its config).
+    """Each seed's visit counts (H, W) so far by training step, from the snapshots of an ecorl run's ``visits/`` that
+    its heat-maps draw (`heatmap_snapshot_files`, all a shipped run keeps; seeds x H x W, the first seed
+    ``first_seed`` of its config).
     """
     first = json.loads((run_dir / "config.json").read_text())["run"]["first_seed"]
-    snapshots = {int(f.stem): read_visits(f) for f in (run_dir / "visits").glob("*.npy")}
+    snapshots = {int(f.stem): read_visits(f) for f in heatmap_snapshot_files(run_dir)}
     seeds = next(iter(snapshots.values())).shape[0] if snapshots else 0
     return {f"seed{first + i}": {step: counts[i] for step, counts in snapshots.items()} for i in range(seeds)}
 
