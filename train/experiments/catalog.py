@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import replace
 from types import MappingProxyType
 from typing import Any
 
@@ -41,6 +42,7 @@ from train.experiments.choices import (
     SPARSE_EQUIVALENT,
     TUNED,
     kept_rules,
+    with_original_window,
 )
 from train.experiments.conditions import (
     FLAT_LADDER,
@@ -340,8 +342,13 @@ def _task_experiments() -> list[Experiment]:
 
 
 def _experiments() -> dict[str, Experiment]:
-    """Every experiment by name, in the order ``ecorl run --list`` shows them."""
-    return {e.name: e for e in (*_salad_experiments(), *_task_experiments(), *released_experiments())}
+    """Every experiment by name, in the order ``ecorl run --list`` shows them, each arm re-run under the original
+    spawn window naming it (`ORIGINAL_WINDOW`).
+    """
+    experiments = (*_salad_experiments(), *_task_experiments(), *released_experiments())
+    return {e.name: replace(e, conditions={task: tuple(with_original_window(e.name, task, c) for c in conditions)
+                                           for task, conditions in e.conditions.items()})
+            for e in experiments}
 
 
 EXPERIMENTS: Mapping[str, Experiment] = MappingProxyType(_experiments())

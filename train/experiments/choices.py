@@ -26,8 +26,9 @@ Every experiment of `train.experiments.catalog` builds on them:
   (``predator_respawn="off-agent"``) in every experiment, though the environment's default is now the original's;
   so re-running an experiment re-runs what is shipped; likewise wherever a shaping window acts, the window is
   shifted inside the wall ring (``spawn_window="shifted"``, `SHIPPED_WINDOW`), not clipped at the grid's edge as
-  the original's (the default since 2026-12-07). (Hunting's and factory's directed steps were kept so too,
-  per condition, until every run trained under ecorl's earlier rule was re-run under the original's.)
+  the original's (the default since 2026-12-07), but for the arms re-run under the original's (`ORIGINAL_WINDOW`).
+  (Hunting's and factory's directed steps were kept so too, per condition, until every run trained under ecorl's
+  earlier rule was re-run under the original's.)
 * evaluation horizon: left to the trainer, which takes each task's test horizon from its test MDP
   (``test_mdp_kwargs()``), whatever the training horizon.
 """
@@ -35,15 +36,17 @@ Every experiment of `train.experiments.catalog` builds on them:
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from types import MappingProxyType
 from typing import Any
 
 from ecology.knobs import parse_schedule
+from train.experiments.experiment import Condition
 from train.tasks import TASKS
 
-__all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
+__all__ = ["DYNAMIC_P", "GRID_TASKS", "ORIGINAL_WINDOW", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
            "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SHIPPED_WINDOW", "SPARSE_EQUIVALENT", "TUNED",
-           "WINDOW_TASKS", "kept_rules", "shaping_window_acts"]
+           "WINDOW_TASKS", "kept_rules", "shaping_window_acts", "with_original_window"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -83,8 +86,15 @@ SHIPPED_WINDOW = MappingProxyType({"spawn_window": "shifted"})
 """The shaping window's rule every experiment keeps where a window acts (`shaping_window_acts`), under a condition's
 own ``env_kwargs``: shifted inside the wall ring, as the shipped environment-shaping runs of salad, walled salad,
 scavenging and hunting's released spawns trained with; the original's window, clipped at the grid's edge, is the
-environments' default since 2026-12-07 (docs/fidelity.md, "spawn window"). An arm re-run under the original's names
-``spawn_window="original"`` itself (`train.experiments.released.ORIGINAL_WINDOW`)."""
+environments' default since 2026-12-07 (docs/fidelity.md, "spawn window"). The arms re-run under the original's
+are named in `ORIGINAL_WINDOW`."""
+
+ORIGINAL_WINDOW = MappingProxyType({
+    "salad-shaping-released": {"salad": frozenset({"env-shaping-sparse"})},
+    "scavenging-released": {"scavenging": frozenset({"env-shaping-540k", "env-shaping-1080k"})},
+})
+"""Experiment -> task -> the arms re-run under the original code's spawn window (since 2026-12-07): their
+``env_kwargs`` name ``spawn_window="original"``, which wins over `SHIPPED_WINDOW` (`with_original_window`)."""
 
 WINDOW_TASKS = ("salad", "walled-salad", "scavenging", "hunting")
 """The tasks whose new objects can grow in a shaping window around the agent."""
@@ -98,6 +108,17 @@ def shaping_window_acts(task: str, shaping: str | float, env_kwargs: Mapping[str
     if task not in WINDOW_TASKS or parse_schedule(shaping).is_zero:
         return False
     return task != "hunting" or env_kwargs.get("shaping_mechanism") == "nearby"
+
+
+def with_original_window(experiment: str, task: str, condition: Condition) -> Condition:
+    """``condition`` with the original code's spawn window among its task parameters where ``experiment`` re-ran
+    that arm under it (`ORIGINAL_WINDOW`); otherwise ``condition`` itself.
+    """
+    if condition.name not in ORIGINAL_WINDOW.get(experiment, {}).get(task, ()):
+        return condition
+    overrides = dict(condition.overrides)
+    overrides["env_kwargs"] = {**overrides.get("env_kwargs", {}), "spawn_window": "original"}
+    return replace(condition, overrides=overrides)
 
 
 def kept_rules(task: str, shaping: str | float, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:

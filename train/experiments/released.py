@@ -25,10 +25,11 @@ claim gets a verdict for both (docs/results/paper/figures.md).
   inventory read 8 times), under the sparse and the waypoint reward.
 * ``salad-shaping-released``: Fig. 5's salad arms (environment shaping, no shaping, distance and one-time reward
   shaping) at the released script's learning rate, 1e-4, with the released network's input; its env-shaped arm
-  with the original code's spawn window (`ORIGINAL_WINDOW`).
+  with the original code's spawn window (`train.experiments.choices.ORIGINAL_WINDOW`).
 * ``scavenging-released``: Fig. 5's scavenging as the released script trained it: predators stepping at random with
   probability 0.25, food also growing with p 0.2, food spawning near the agent over the released windows, validated
-  as released (predators at 0.25, one reborn at a random cell each step).
+  as released (predators at 0.25, one reborn at a random cell each step); its env-shaped arms with the original
+  code's spawn window (`train.experiments.choices.ORIGINAL_WINDOW`).
 * ``scavenging-released-fig4``: Fig. 4's scavenging as the released sweep ran it: predators still or stepping at
   random with probability 0.4, in the released world (food growing), validated as released.
 * ``walls-released``: Figs. 8-10's walled salad as the released wall script trained it: ``walls``' ten arms with the
@@ -42,8 +43,6 @@ not the released one (one per step, possibly on the agent), ecorl's default sinc
 """
 
 from __future__ import annotations
-
-from types import MappingProxyType
 
 from train.experiments.choices import DYNAMIC_P, SHAPING_SCHEDULE
 from train.experiments.conditions import (
@@ -246,17 +245,12 @@ def _hunting_inventory() -> Experiment:
         {"hunting": 1_500_000}, 10, {"smoke": SMOKE, "quick": quick(3, 150_000)})
 
 
-ORIGINAL_WINDOW = MappingProxyType({"env-shaping-sparse": {"env_kwargs": {"spawn_window": "original"}}})
-"""The arms of `salad-shaping-released` re-run under the original code's spawn window (2026-12-07), which overrides
-the shifted one the experiments keep for the runs trained with it (`SHIPPED_WINDOW`)."""
-
-
 def _salad_shaping_released() -> Experiment:
     """Fig. 5's salad arms as the released shaping script trained them: lr 1e-4 and the released network."""
     kept = ("env-shaping-sparse", "no-shaping", "distance-reward", "one-time-reward")
     paper = {c.name: c for c in shaping_conditions("salad")}
     arms = tuple(Condition(name, f"{paper[name].label}, lr 1e-4, inventory read 8 times",
-                           {**paper[name].overrides, "lr": 1e-4, **RELEASED_NETWORK, **ORIGINAL_WINDOW.get(name, {})})
+                           {**paper[name].overrides, "lr": 1e-4, **RELEASED_NETWORK})
                  for name in kept)
     return Experiment(
         "salad-shaping-released", "Fig. 5 (salad), as released", "Salad's environment shaping as released",

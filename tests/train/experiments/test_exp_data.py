@@ -21,7 +21,7 @@ from train.experiments.catalog import (
     get_experiment,
     job_config,
 )
-from train.experiments.choices import shaping_window_acts
+from train.experiments.choices import ORIGINAL_WINDOW, shaping_window_acts
 from train.experiments.sweep import plan
 from train.storage.rundir import FILM_FILES, setting_differences
 from train.tasks import get_task
@@ -435,9 +435,9 @@ def test_scavenging_released_arms_train_the_released_world_and_differ_in_the_spa
     assert plain.dqn.lr == 1e-4 and plain.env.shaping == "0"
     assert {name: cfg.env.shaping for name, cfg in arms.items()} == {
         "env-shaping-540k": "linear:1:0:540000", "env-shaping-1080k": "linear:1:0:1080000"}
-    for cfg in arms.values():  # and the window shifted inside the walls, as they trained (SHIPPED_WINDOW)
-        kept = {"spawn_window": "shifted", **plain.env.env_kwargs}
-        assert cfg == plain.replace(shaping=cfg.env.shaping, env_kwargs=kept)
+    for cfg in arms.values():  # both re-run under the original window (ORIGINAL_WINDOW), not SHIPPED_WINDOW's
+        window = {"spawn_window": "original", **plain.env.env_kwargs}
+        assert cfg == plain.replace(shaping=cfg.env.shaping, env_kwargs=window)
 
 
 def test_scavenging_released_fig4_is_fig_4_in_the_released_world_with_the_sweeps_dynamism():
@@ -482,6 +482,23 @@ def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_th
                     kept["spawn_window"] = "shifted"
                 assert kwargs == {**kept, **own}, (exp.name, task, c.name)  # a condition's own rule wins
                 assert "directed_moves" not in kwargs, (exp.name, task, c.name)
+
+
+def test_every_arm_re_run_under_the_original_window_exists_and_grows_objects_in_a_window():
+    """`ORIGINAL_WINDOW` names arms of its experiments whose worlds have a window, and exactly those train under the
+    original window: a misspelt or windowless arm would silently keep the shifted one or name a rule that does nothing.
+    """
+    for name, tasks in ORIGINAL_WINDOW.items():
+        exp = get_experiment(name)
+        for task, arms in tasks.items():
+            built = {c.name: job_config(task, c, exp.budget("smoke")).env for c in exp.conditions[task]}
+            assert arms <= built.keys(), (name, task, arms - built.keys())
+            for arm in arms:
+                assert shaping_window_acts(task, built[arm].shaping, built[arm].env_kwargs), (name, task, arm)
+    original = {(exp.name, task, c.name) for exp in EXPERIMENTS.values() for task, conditions in exp.conditions.items()
+                for c in conditions if c.overrides.get("env_kwargs", {}).get("spawn_window") == "original"}
+    assert original == {(name, task, arm) for name, tasks in ORIGINAL_WINDOW.items()
+                        for task, arms in tasks.items() for arm in arms}
 
 
 def test_shaping_window_acts_where_objects_grow_near_the_agent():
