@@ -29,7 +29,8 @@ salad, walled salad and scavenging, and hunting's released spawns, at three budg
 shifted`` the same way (`SHIPPED_WINDOW`), checked to be the only change; ``salad-shaping-released``'s
 ``env-shaping-sparse``, re-run under the original window, names ``spawn_window: original`` instead (its three jobs
 and its entry in the experiment's description), and so later each arm re-run under it (`ORIGINAL_WINDOW`:
-``scavenging-released``'s two env-shaping arms, ``shaping``'s scavenging one), checked to be the only change.
+``scavenging-released``'s two env-shaping arms, ``shaping``'s scavenging one, ``hunting-released``'s
+``env-shaping-sparse-260k``), checked to be the only change.
 """
 
 from __future__ import annotations
