@@ -93,7 +93,8 @@ ORIGINAL_WINDOW = MappingProxyType({
     "salad-shaping-released": {"salad": frozenset({"env-shaping-sparse"})},
     "scavenging-released": {"scavenging": frozenset({"env-shaping-540k", "env-shaping-1080k"})},
     "shaping": {"scavenging": frozenset({"env-shaping-sparse"}), "salad": frozenset({"env-shaping-sparse"})},
-    "hunting-released": {"hunting": frozenset({"env-shaping-sparse-260k", "env-shaping-sparse-780k"})},
+    "hunting-released": {"hunting": frozenset({"env-shaping-sparse-260k", "env-shaping-sparse-780k",
+                                               "env-shaping-waypoint-260k", "env-shaping-waypoint-780k"})},
 })
 """Experiment -> task -> the arms re-run under the original code's spawn window (since 2026-12-07): their
 ``env_kwargs`` name ``spawn_window="original"``, which wins over `SHIPPED_WINDOW` (`with_original_window`)."""
