@@ -92,7 +92,8 @@ are named in `ORIGINAL_WINDOW`."""
 ORIGINAL_WINDOW = MappingProxyType({
     "salad-shaping-released": {"salad": frozenset({"env-shaping-sparse"})},
     "scavenging-released": {"scavenging": frozenset({"env-shaping-540k", "env-shaping-1080k"})},
-    "shaping": {"scavenging": frozenset({"env-shaping-sparse"}), "salad": frozenset({"env-shaping-sparse"})},
+    "shaping": {"scavenging": frozenset({"env-shaping-sparse"}),
+                "salad": frozenset({"env-shaping-sparse", "env-shaping-subgoal"})},
     "hunting-released": {"hunting": frozenset({"env-shaping-sparse-260k", "env-shaping-sparse-780k",
                                                "env-shaping-waypoint-260k", "env-shaping-waypoint-780k"})},
 })
