@@ -94,7 +94,7 @@ ORIGINAL_WINDOW = MappingProxyType({
     "scavenging-released": {"scavenging": frozenset({"env-shaping-540k", "env-shaping-1080k"})},
     "shaping": {"scavenging": frozenset({"env-shaping-sparse"}),
                 "salad": frozenset({"env-shaping-sparse", "env-shaping-subgoal"})},
-    "shaping-gap": {"salad": frozenset({"env-shaping-560k"})},
+    "shaping-gap": {"salad": frozenset({"env-shaping-560k", "env-shaping-840k", "env-shaping-lr1e-4"})},
     "hunting-released": {"hunting": frozenset({"env-shaping-sparse-260k", "env-shaping-sparse-780k",
                                                "env-shaping-waypoint-260k", "env-shaping-waypoint-780k"})},
 })
