@@ -11,8 +11,8 @@ claim gets a verdict for both (docs/results/paper/figures.md).
   non-episodic condition once more with the released network's input.
 * ``hunting-released``: Fig. 5's hunting as released: deer wandering with p 0.1, new deer and axes near the agent
   (the released spawn windows (60 000, 20 000) and (180 000, 60 000)), its four reward arms, validated as it did
-  (deer moving at 0.1, one deer and one axe, 100 steps); its sparse arm with the faster window under the original
-  code's spawn window (`train.experiments.choices.ORIGINAL_WINDOW`).
+  (deer moving at 0.1, one deer and one axe, 100 steps); its env-shaped arms under the original code's spawn
+  window (`train.experiments.choices.ORIGINAL_WINDOW`).
 * ``hunting-released-fig4``: Fig. 4's hunting sweep as released: distance and waypoint rewards (never sparse),
   episodic horizon 100, validated with deer moving at 0.2.
 * ``foodcollector-episodes-1000``: Fig. 4's two episodic food-collector conditions at the 1 000-decision

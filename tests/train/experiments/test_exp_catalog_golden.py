@@ -28,9 +28,8 @@ grid's edge) as its default, the 63 jobs in which a window acts (`shaping_window
 salad, walled salad and scavenging, and hunting's released spawns, at three budgets) gained ``spawn_window:
 shifted`` the same way (`SHIPPED_WINDOW`), checked to be the only change; ``salad-shaping-released``'s
 ``env-shaping-sparse``, re-run under the original window, names ``spawn_window: original`` instead (its three jobs
-and its entry in the experiment's description), and so later each arm re-run under it (`ORIGINAL_WINDOW`:
-``scavenging-released``'s two env-shaping arms, ``shaping``'s scavenging one, ``hunting-released``'s
-``env-shaping-sparse-260k``), checked to be the only change.
+and its entry in the experiment's description), and so later each arm re-run under it (the arms `ORIGINAL_WINDOW`
+names), each checked to be the only change.
 """
 
 from __future__ import annotations
