@@ -97,7 +97,8 @@ ORIGINAL_WINDOW = MappingProxyType({
     "shaping-gap": {"salad": frozenset({"env-shaping-560k", "env-shaping-840k", "env-shaping-lr1e-4"})},
     "hunting-released": {"hunting": frozenset({"env-shaping-sparse-260k", "env-shaping-sparse-780k",
                                                "env-shaping-waypoint-260k", "env-shaping-waypoint-780k"})},
-    "walls": {"walled-salad": frozenset({"env-shaping-sparse-reset-free", "env-shaping-subgoal-reset-free"})},
+    "walls": {"walled-salad": frozenset({"env-shaping-sparse-reset-free", "env-shaping-subgoal-reset-free",
+                                         "env-shaping-sparse-episodic", "env-shaping-subgoal-episodic"})},
 })
 """Experiment -> task -> the arms re-run under the original code's spawn window (since 2026-12-07): their
 ``env_kwargs`` name ``spawn_window="original"``, which wins over `SHIPPED_WINDOW` (`with_original_window`)."""
