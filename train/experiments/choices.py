@@ -99,6 +99,7 @@ ORIGINAL_WINDOW = MappingProxyType({
                                                "env-shaping-waypoint-260k", "env-shaping-waypoint-780k"})},
     "walls": {"walled-salad": frozenset({"env-shaping-sparse-reset-free", "env-shaping-subgoal-reset-free",
                                          "env-shaping-sparse-episodic", "env-shaping-subgoal-episodic"})},
+    "walls-released": {"walled-salad": frozenset({"env-shaping-sparse-reset-free", "env-shaping-subgoal-reset-free"})},
 })
 """Experiment -> task -> the arms re-run under the original code's spawn window (since 2026-12-07): their
 ``env_kwargs`` name ``spawn_window="original"``, which wins over `SHIPPED_WINDOW` (`with_original_window`)."""
