@@ -38,11 +38,10 @@ from train.experiments.choices import (
     SHAPING_BASE,
     SHAPING_SCHEDULE,
     SHIPPED_RULES,
-    SHIPPED_WINDOW,
     SPARSE_EQUIVALENT,
     TUNED,
     kept_rules,
-    with_original_window,
+    with_window_named,
 )
 from train.experiments.conditions import (
     FLAT_LADDER,
@@ -58,7 +57,7 @@ from train.experiments.experiment import BUDGETS, Budget, Condition, Experiment
 from train.experiments.released import released_experiments
 
 __all__ = ["BUDGETS", "DYNAMIC_P", "EXPERIMENTS", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS",
-           "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SHIPPED_WINDOW", "SMOKE",
+           "RELEASED_SALAD_SCHEDULES", "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SMOKE",
            "SPARSE_EQUIVALENT", "TUNED", "WAYPOINT_TASKS", "Budget", "Condition", "Experiment", "get_experiment",
            "job_config"]
 
@@ -71,7 +70,7 @@ def job_config(task: str, condition: Condition, budget: Budget) -> TrainConfig:
     """
     flat: dict[str, Any] = {"task": task, **TUNED.get(task, {}), **condition.overrides}
     own = flat.get("env_kwargs", {})
-    flat["env_kwargs"] = {**kept_rules(task, flat.get("shaping", 0.0), own), **own}
+    flat["env_kwargs"] = {**kept_rules(task), **own}
     flat.update(budget.overrides)
     flat.update(budget.task_overrides.get(task, {}))
     steps = budget.steps_for(task)
@@ -342,11 +341,11 @@ def _task_experiments() -> list[Experiment]:
 
 
 def _experiments() -> dict[str, Experiment]:
-    """Every experiment by name, in the order ``ecorl run --list`` shows them, each arm re-run under the original
-    spawn window naming it (`ORIGINAL_WINDOW`).
+    """Every experiment by name, in the order ``ecorl run --list`` shows them, each condition with a shaping window
+    naming it (`with_window_named`).
     """
     experiments = (*_salad_experiments(), *_task_experiments(), *released_experiments())
-    return {e.name: replace(e, conditions={task: tuple(with_original_window(e.name, task, c) for c in conditions)
+    return {e.name: replace(e, conditions={task: tuple(with_window_named(task, c) for c in conditions)
                                            for task, conditions in e.conditions.items()})
             for e in experiments}
 

@@ -24,11 +24,12 @@ Every experiment of `train.experiments.catalog` builds on them:
   docs/fidelity.md ("Trainer settings").
 * task parameters kept as shipped (`SHIPPED_RULES`): scavenging's predators are reborn off the agent's cell
   (``predator_respawn="off-agent"``) in every experiment, though the environment's default is now the original's;
-  so re-running an experiment re-runs what is shipped; likewise wherever a shaping window acts, the window is
-  shifted inside the wall ring (``spawn_window="shifted"``, `SHIPPED_WINDOW`), not clipped at the grid's edge as
-  the original's (the default since 2026-12-07), but for the arms re-run under the original's (`ORIGINAL_WINDOW`).
-  (Hunting's and factory's directed steps were kept so too, per condition, until every run trained under ecorl's
-  earlier rule was re-run under the original's.)
+  so re-running an experiment re-runs what is shipped. (Hunting's and factory's directed steps and the shaping
+  window's rule were kept so too, until every run trained under ecorl's earlier rule was re-run under the
+  original's.)
+* the shaping window (`with_window_named`): every condition whose world grows objects in a window names the
+  original code's (``spawn_window="original"``, the environments' default) among its task parameters, so that each
+  run's ``config.json`` says which window it trained with (ecorl's earlier rule shifted it inside the wall ring).
 * evaluation horizon: left to the trainer, which takes each task's test horizon from its test MDP
   (``test_mdp_kwargs()``), whatever the training horizon.
 """
@@ -44,9 +45,9 @@ from ecology.knobs import parse_schedule
 from train.experiments.experiment import Condition
 from train.tasks import TASKS
 
-__all__ = ["DYNAMIC_P", "GRID_TASKS", "ORIGINAL_WINDOW", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
-           "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SHIPPED_WINDOW", "SPARSE_EQUIVALENT", "TUNED",
-           "WINDOW_TASKS", "kept_rules", "shaping_window_acts", "with_original_window"]
+__all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
+           "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED",
+           "WINDOW_TASKS", "kept_rules", "shaping_window_acts", "with_window_named"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -82,28 +83,6 @@ predators reborn at once off the agent's cell (the original's, one per step and 
 default since 2026-12-06; a random policy is caught on 4 569 steps per 20 000 under the kept rule, 4 882 under the
 original's)."""
 
-SHIPPED_WINDOW = MappingProxyType({"spawn_window": "shifted"})
-"""The shaping window's rule every experiment keeps where a window acts (`shaping_window_acts`), under a condition's
-own ``env_kwargs``: shifted inside the wall ring, as the shipped environment-shaping runs of salad, walled salad,
-scavenging and hunting's released spawns trained with; the original's window, clipped at the grid's edge, is the
-environments' default since 2026-12-07 (docs/fidelity.md, "spawn window"). The arms re-run under the original's
-are named in `ORIGINAL_WINDOW`."""
-
-ORIGINAL_WINDOW = MappingProxyType({
-    "salad-shaping-released": {"salad": frozenset({"env-shaping-sparse"})},
-    "scavenging-released": {"scavenging": frozenset({"env-shaping-540k", "env-shaping-1080k"})},
-    "shaping": {"scavenging": frozenset({"env-shaping-sparse"}),
-                "salad": frozenset({"env-shaping-sparse", "env-shaping-subgoal"})},
-    "shaping-gap": {"salad": frozenset({"env-shaping-560k", "env-shaping-840k", "env-shaping-lr1e-4"})},
-    "hunting-released": {"hunting": frozenset({"env-shaping-sparse-260k", "env-shaping-sparse-780k",
-                                               "env-shaping-waypoint-260k", "env-shaping-waypoint-780k"})},
-    "walls": {"walled-salad": frozenset({"env-shaping-sparse-reset-free", "env-shaping-subgoal-reset-free",
-                                         "env-shaping-sparse-episodic", "env-shaping-subgoal-episodic"})},
-    "walls-released": {"walled-salad": frozenset({"env-shaping-sparse-reset-free", "env-shaping-subgoal-reset-free"})},
-})
-"""Experiment -> task -> the arms re-run under the original code's spawn window (since 2026-12-07): their
-``env_kwargs`` name ``spawn_window="original"``, which wins over `SHIPPED_WINDOW` (`with_original_window`)."""
-
 WINDOW_TASKS = ("salad", "walled-salad", "scavenging", "hunting")
 """The tasks whose new objects can grow in a shaping window around the agent."""
 
@@ -118,23 +97,21 @@ def shaping_window_acts(task: str, shaping: str | float, env_kwargs: Mapping[str
     return task != "hunting" or env_kwargs.get("shaping_mechanism") == "nearby"
 
 
-def with_original_window(experiment: str, task: str, condition: Condition) -> Condition:
-    """``condition`` with the original code's spawn window among its task parameters where ``experiment`` re-ran
-    that arm under it (`ORIGINAL_WINDOW`); otherwise ``condition`` itself.
+def with_window_named(task: str, condition: Condition) -> Condition:
+    """``condition`` naming the original code's spawn window among its task parameters where its world grows objects
+    in a shaping window (`shaping_window_acts`) and it names no window itself; otherwise ``condition`` itself.
     """
-    if condition.name not in ORIGINAL_WINDOW.get(experiment, {}).get(task, ()):
+    own = condition.overrides.get("env_kwargs", {})
+    if "spawn_window" in own or not shaping_window_acts(task, condition.overrides.get("shaping", 0.0), own):
         return condition
-    overrides = dict(condition.overrides)
-    overrides["env_kwargs"] = {**overrides.get("env_kwargs", {}), "spawn_window": "original"}
-    return replace(condition, overrides=overrides)
+    return replace(condition, overrides={**condition.overrides, "env_kwargs": {**own, "spawn_window": "original"}})
 
 
-def kept_rules(task: str, shaping: str | float, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
-    """The task parameters a condition keeps as its shipped runs trained with (`SHIPPED_RULES`, and `SHIPPED_WINDOW`
-    where a shaping window acts), to go under the condition's own ``env_kwargs``.
+def kept_rules(task: str) -> dict[str, Any]:
+    """The task parameters a condition of ``task`` keeps as its shipped runs trained with (`SHIPPED_RULES`), to go
+    under the condition's own ``env_kwargs``.
     """
-    window = SHIPPED_WINDOW if shaping_window_acts(task, shaping, env_kwargs) else {}
-    return {**SHIPPED_RULES.get(task, {}), **window}
+    return dict(SHIPPED_RULES.get(task, {}))
 
 
 SHAPING_BASE = MappingProxyType({

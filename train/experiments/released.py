@@ -11,8 +11,7 @@ claim gets a verdict for both (docs/results/paper/figures.md).
   non-episodic condition once more with the released network's input.
 * ``hunting-released``: Fig. 5's hunting as released: deer wandering with p 0.1, new deer and axes near the agent
   (the released spawn windows (60 000, 20 000) and (180 000, 60 000)), its four reward arms, validated as it did
-  (deer moving at 0.1, one deer and one axe, 100 steps); its env-shaped arms under the original code's spawn
-  window (`train.experiments.choices.ORIGINAL_WINDOW`).
+  (deer moving at 0.1, one deer and one axe, 100 steps).
 * ``hunting-released-fig4``: Fig. 4's hunting sweep as released: distance and waypoint rewards (never sparse),
   episodic horizon 100, validated with deer moving at 0.2.
 * ``foodcollector-episodes-1000``: Fig. 4's two episodic food-collector conditions at the 1 000-decision
@@ -25,12 +24,10 @@ claim gets a verdict for both (docs/results/paper/figures.md).
 * ``hunting-inventory``: Fig. 4's dynamic non-episodic hunting as shipped but for the released network's input (the
   inventory read 8 times), under the sparse and the waypoint reward.
 * ``salad-shaping-released``: Fig. 5's salad arms (environment shaping, no shaping, distance and one-time reward
-  shaping) at the released script's learning rate, 1e-4, with the released network's input; its env-shaped arm
-  with the original code's spawn window (`train.experiments.choices.ORIGINAL_WINDOW`).
+  shaping) at the released script's learning rate, 1e-4, with the released network's input.
 * ``scavenging-released``: Fig. 5's scavenging as the released script trained it: predators stepping at random with
   probability 0.25, food also growing with p 0.2, food spawning near the agent over the released windows, validated
-  as released (predators at 0.25, one reborn at a random cell each step); its env-shaped arms with the original
-  code's spawn window (`train.experiments.choices.ORIGINAL_WINDOW`).
+  as released (predators at 0.25, one reborn at a random cell each step).
 * ``scavenging-released-fig4``: Fig. 4's scavenging as the released sweep ran it: predators still or stepping at
   random with probability 0.4, in the released world (food growing), validated as released.
 * ``walls-released``: Figs. 8-10's walled salad as the released wall script trained it: ``walls``' ten arms with the

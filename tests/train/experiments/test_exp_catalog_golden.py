@@ -26,10 +26,10 @@ budgets) gained ``directed_moves: current-free`` the same way; a condition re-ru
 shipped lost it again, until none kept it. When the shaping window took the original code's rule (clipped at the
 grid's edge) as its default, the 63 jobs in which a window acts (`shaping_window_acts`: the env-shaping arms of
 salad, walled salad and scavenging, and hunting's released spawns, at three budgets) gained ``spawn_window:
-shifted`` the same way (`SHIPPED_WINDOW`), checked to be the only change; ``salad-shaping-released``'s
-``env-shaping-sparse``, re-run under the original window, names ``spawn_window: original`` instead (its three jobs
-and its entry in the experiment's description), and so later each arm re-run under it (the arms `ORIGINAL_WINDOW`
-names), each checked to be the only change.
+shifted`` the same way, checked to be the only change; ``salad-shaping-released``'s ``env-shaping-sparse``,
+re-run under the original window, names ``spawn_window: original`` instead (its three jobs and its entry in the
+experiment's description), and so later each arm re-run under it, each checked to be the only change, until all 21
+conditions with a window named it and the experiments dropped the shifted window (`with_window_named`).
 """
 
 from __future__ import annotations

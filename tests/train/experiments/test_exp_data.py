@@ -21,7 +21,7 @@ from train.experiments.catalog import (
     get_experiment,
     job_config,
 )
-from train.experiments.choices import ORIGINAL_WINDOW, shaping_window_acts
+from train.experiments.choices import shaping_window_acts
 from train.experiments.sweep import plan
 from train.storage.rundir import FILM_FILES, setting_differences
 from train.tasks import get_task
@@ -419,15 +419,14 @@ def test_a_shipped_copy_is_its_source_file_for_file(copy, source):
     assert all((copy_dir / f).read_bytes() == (source_dir / f).read_bytes() for f in files)
 
 
-def test_salad_shaping_released_arms_are_fig_5s_with_only_the_rate_the_inventory_and_the_window_changed():
+def test_salad_shaping_released_arms_are_fig_5s_with_only_the_rate_and_the_inventory_changed():
     released, paper = get_experiment("salad-shaping-released"), get_experiment("shaping")
     shipped = {c.name: job_config("salad", c, paper.budget("paper")) for c in paper.conditions["salad"]}
     arms = {c.name: job_config("salad", c, released.budget("paper")) for c in released.conditions["salad"]}
     assert list(arms) == ["env-shaping-sparse", "no-shaping", "distance-reward", "one-time-reward"]
-    for name, cfg in arms.items():  # env shaping re-run under the original window (ORIGINAL_WINDOW)
+    for name, cfg in arms.items():
         assert (shipped[name].dqn.lr, shipped[name].dqn.inventory_repeat) == (3e-4, 1)
-        window = {"env_kwargs": {"spawn_window": "original"}} if name == "env-shaping-sparse" else {}
-        assert cfg == shipped[name].replace(lr=1e-4, inventory_repeat=8, **window)
+        assert cfg == shipped[name].replace(lr=1e-4, inventory_repeat=8)
 
 
 def test_scavenging_released_arms_train_the_released_world_and_differ_in_the_spawn_window_alone():
@@ -441,7 +440,7 @@ def test_scavenging_released_arms_train_the_released_world_and_differ_in_the_spa
     assert plain.dqn.lr == 1e-4 and plain.env.shaping == "0"
     assert {name: cfg.env.shaping for name, cfg in arms.items()} == {
         "env-shaping-540k": "linear:1:0:540000", "env-shaping-1080k": "linear:1:0:1080000"}
-    for cfg in arms.values():  # both re-run under the original window (ORIGINAL_WINDOW), not SHIPPED_WINDOW's
+    for cfg in arms.values():  # both name the window they grow food in (with_window_named)
         window = {"spawn_window": "original", **plain.env.env_kwargs}
         assert cfg == plain.replace(shaping=cfg.env.shaping, env_kwargs=window)
 
@@ -469,11 +468,11 @@ def test_walls_released_is_walls_with_the_released_network():
         assert released == shipped.replace(inventory_repeat=8)
 
 
-def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_they_act():
+def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_and_names_its_window():
     """`SHIPPED_RULES`: the envs' default is the original's predator respawn; every scavenging condition keeps the
-    shipped one beside its own env_kwargs; `SHIPPED_WINDOW`: every condition whose world grows objects in a shaping
-    window keeps the shifted window; no condition of any task sets anything else (its directed steps included:
-    every shipped run trained with the original's).
+    shipped one beside its own env_kwargs; no condition of any task sets anything else (its directed steps included:
+    every shipped run trained with the original's); every condition whose world grows objects in a shaping window
+    names the original code's window, and no other condition names one (`with_window_named`).
     """
     for exp in EXPERIMENTS.values():
         for task, conditions in exp.conditions.items():
@@ -484,31 +483,14 @@ def test_every_experiment_keeps_the_rules_its_shipped_runs_trained_with_where_th
                 kwargs = env.env_kwargs
                 kept = {"predator_respawn": "off-agent"} if task == "scavenging" else {}
                 own = c.overrides.get("env_kwargs", {})
-                if shaping_window_acts(task, env.shaping, own):
-                    kept["spawn_window"] = "shifted"
                 assert kwargs == {**kept, **own}, (exp.name, task, c.name)  # a condition's own rule wins
                 assert "directed_moves" not in kwargs, (exp.name, task, c.name)
-
-
-def test_every_arm_re_run_under_the_original_window_exists_and_grows_objects_in_a_window():
-    """`ORIGINAL_WINDOW` names arms of its experiments whose worlds have a window, and exactly those train under the
-    original window: a misspelt or windowless arm would silently keep the shifted one or name a rule that does nothing.
-    """
-    for name, tasks in ORIGINAL_WINDOW.items():
-        exp = get_experiment(name)
-        for task, arms in tasks.items():
-            built = {c.name: job_config(task, c, exp.budget("smoke")).env for c in exp.conditions[task]}
-            assert arms <= built.keys(), (name, task, arms - built.keys())
-            for arm in arms:
-                assert shaping_window_acts(task, built[arm].shaping, built[arm].env_kwargs), (name, task, arm)
-    original = {(exp.name, task, c.name) for exp in EXPERIMENTS.values() for task, conditions in exp.conditions.items()
-                for c in conditions if c.overrides.get("env_kwargs", {}).get("spawn_window") == "original"}
-    assert original == {(name, task, arm) for name, tasks in ORIGINAL_WINDOW.items()
-                        for task, arms in tasks.items() for arm in arms}
+                window = shaping_window_acts(task, env.shaping, own)
+                assert kwargs.get("spawn_window") == ("original" if window else None), (exp.name, task, c.name)
 
 
 def test_shaping_window_acts_where_objects_grow_near_the_agent():
-    """`SHIPPED_WINDOW` is kept where a window acts: shaped salad, walled salad and scavenging, and hunting's
+    """A condition names its window where one acts: shaped salad, walled salad and scavenging, and hunting's
     released spawns; not without shaping, nor in hunting's easy-deer shaping or in factory's cooperative workers.
     """
     assert shaping_window_acts("salad", "linear:1:0:280000", {})
