@@ -40,7 +40,6 @@ from train.experiments.choices import (
     SHIPPED_RULES,
     SPARSE_EQUIVALENT,
     TUNED,
-    kept_rules,
     with_window_named,
 )
 from train.experiments.conditions import (
@@ -70,7 +69,7 @@ def job_config(task: str, condition: Condition, budget: Budget) -> TrainConfig:
     """
     flat: dict[str, Any] = {"task": task, **TUNED.get(task, {}), **condition.overrides}
     own = flat.get("env_kwargs", {})
-    flat["env_kwargs"] = {**kept_rules(task), **own}
+    flat["env_kwargs"] = {**SHIPPED_RULES.get(task, {}), **own}
     flat.update(budget.overrides)
     flat.update(budget.task_overrides.get(task, {}))
     steps = budget.steps_for(task)

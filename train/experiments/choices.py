@@ -47,7 +47,7 @@ from train.tasks import TASKS
 
 __all__ = ["DYNAMIC_P", "GRID_TASKS", "PAPER_STEPS", "PAPER_TASKS", "RELEASED_SALAD_SCHEDULES",
            "SHAPING_BASE", "SHAPING_SCHEDULE", "SHIPPED_RULES", "SPARSE_EQUIVALENT", "TUNED",
-           "WINDOW_TASKS", "kept_rules", "shaping_window_acts", "with_window_named"]
+           "WINDOW_TASKS", "shaping_window_acts", "with_window_named"]
 
 GRID_TASKS = tuple(name for name, task in TASKS.items() if task.package == "gridtasks")
 """The grid tasks (in the order of `gridtasks.ENV_IDS`)."""
@@ -105,13 +105,6 @@ def with_window_named(task: str, condition: Condition) -> Condition:
     if "spawn_window" in own or not shaping_window_acts(task, condition.overrides.get("shaping", 0.0), own):
         return condition
     return replace(condition, overrides={**condition.overrides, "env_kwargs": {**own, "spawn_window": "original"}})
-
-
-def kept_rules(task: str) -> dict[str, Any]:
-    """The task parameters a condition of ``task`` keeps as its shipped runs trained with (`SHIPPED_RULES`), to go
-    under the condition's own ``env_kwargs``.
-    """
-    return dict(SHIPPED_RULES.get(task, {}))
 
 
 SHAPING_BASE = MappingProxyType({

@@ -337,17 +337,11 @@ def test_shaping_gap_arms_are_fig_5s_salad_arms_with_one_setting_changed():
     ours = {c.name: job_config("salad", c, gap.budget("paper")) for c in gap.conditions["salad"]}
     theirs = {c.name: job_config("salad", c, fig5.budget("paper")) for c in fig5.conditions["salad"]}
     shaped, plain = theirs["env-shaping-sparse"], theirs["no-shaping"]
-    # The spawn window may differ while the arms are re-run under the original's one by one: compare each under
-    # its own window (which arms have which: test_every_arm_re_run_under_the_original_window_exists_...).
-    window = {name: cfg.env.env_kwargs["spawn_window"] for name, cfg in ours.items() if name.startswith("env-")}
-    shaped = {name: shaped.replace(env_kwargs={**shaped.env.env_kwargs, "spawn_window": window[name]})
-              for name in ("env-shaping-560k", "env-shaping-840k", "env-shaping-lr1e-4")}
-    assert ours["env-shaping-560k"] == shaped["env-shaping-560k"].replace(shaping=RELEASED_SALAD_SCHEDULES["560k"])
-    assert ours["env-shaping-840k"] == shaped["env-shaping-840k"].replace(shaping=RELEASED_SALAD_SCHEDULES["840k"])
-    assert ours["env-shaping-lr1e-4"] == shaped["env-shaping-lr1e-4"].replace(lr=1e-4)
+    assert ours["env-shaping-560k"] == shaped.replace(shaping=RELEASED_SALAD_SCHEDULES["560k"])
+    assert ours["env-shaping-840k"] == shaped.replace(shaping=RELEASED_SALAD_SCHEDULES["840k"])
+    assert ours["env-shaping-lr1e-4"] == shaped.replace(lr=1e-4)
     assert ours["no-shaping-lr1e-4"] == plain.replace(lr=1e-4)
-    fig5_shaped = theirs["env-shaping-sparse"]
-    assert (fig5_shaped.dqn.lr, fig5_shaped.env.shaping) == (3e-4, RELEASED_SALAD_SCHEDULES["280k"])
+    assert (shaped.dqn.lr, shaped.env.shaping) == (3e-4, RELEASED_SALAD_SCHEDULES["280k"])
 
 
 def test_hunting_inventory_arms_are_the_shipped_fig_4_runs_with_only_the_inventory_read_8_times():
