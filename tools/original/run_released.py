@@ -43,6 +43,7 @@ SCRIPTS = {
     "scavenging-shaping": "experiments/continual/env_shaping/monster/dqn.py",
     "hunting-shaping": "experiments/continual/env_shaping/distance_increasing/deer/tool_dqn.py",
     "salad-shaping": "experiments/continual/env_shaping/distance_increasing/axe/tool_dqn.py",
+    "walls-shaping": "experiments/continual/env_shaping/env_vs_reward/wall/tool_dqn_wall_train.py",
 }
 """Named released scripts; any other script path inside the checkout also works."""
 NUM_ACTIONS = 7
@@ -312,6 +313,10 @@ def main(argv: list[str] | None = None) -> None:
     variant["algo_kwargs"]["algorithm_kwargs"]["num_epochs"] = total
     if args.validate_every:
         variant["algo_kwargs"]["algorithm_kwargs"]["validation_period"] = args.validate_every
+    algorithm_kwargs = variant["algo_kwargs"]["algorithm_kwargs"]
+    if "validation_envs_pkl" in algorithm_kwargs:
+        algorithm_kwargs["validation_envs_pkl"] = shims.released_path(algorithm_kwargs["validation_envs_pkl"],
+                                                                      args.checkout)
     args.out.mkdir(parents=True, exist_ok=True)
 
     from rlkit.core.rl_algorithm import BaseRLAlgorithm

@@ -27,6 +27,9 @@ Each adjustment is import-time only and changes nothing the released code comput
    past 10 GB by 1 500 epochs, more than a 24 GB machine can hold for two seeds). After each step the list is
    trimmed to the entries the release ever reads (`trim_count_snapshots`): the last ``max_mixing_time_period + 1``,
    which is the release's own rule when mixing times are asked for. Nothing trained or measured changes.
+7. The wall scripts (``env_shaping/env_vs_reward/wall/``) name their validation pickle under ``examples/``, the
+   folder's name before the release renamed it ``experiments/`` (where every other script points, and where the
+   named file is): such a path is read from ``experiments/`` (`released_path`).
 
 Everything else the released code needs comes from the versions pinned in ``requirements.txt`` (gym 0.10.5,
 the version the released environment file names; NumPy 1.x, which the validation pickles and gym 0.10.5 need).
@@ -48,6 +51,8 @@ ADJUSTMENTS = (
     "sets and the older pickles lack, at their __init__ defaults",
     "the observation-count snapshots FoodEnvBase.step appends every 120 steps are trimmed to the last "
     "max_mixing_time_period + 1 (all the release reads; it trims so itself when mixing times are measured)",
+    "a validation pickle named under examples/ (the folder's name before the release renamed it experiments/) is "
+    "read from experiments/",
 )
 PICKLE_DEFAULTS = {
     "reset_hitting": lambda: True,
@@ -96,6 +101,17 @@ def check_checkout(checkout: Path) -> Path:
         raise SystemExit(f"{checkout} is not a checkout of jcoreyes/ecologicalrl (no rlkit/envs/gym_minigrid); "
                          "pass --checkout PATH to one")
     return checkout
+
+
+def released_path(path: str, checkout: Path) -> str:
+    """``path`` itself, or, where it names a missing file under the checkout's ``examples/``, the same file under
+    ``experiments/`` (adjustment 7).
+    """
+    old, new = checkout.resolve() / "examples", checkout.resolve() / "experiments"
+    moved = Path(path)
+    if moved.is_file() or not moved.is_relative_to(old):
+        return path
+    return str(new / moved.relative_to(old))
 
 
 def install(checkout: Path) -> None:
