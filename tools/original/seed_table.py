@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from compare import BLOWN, ecorl_seeds, released_seeds
 
-from ecology import corner_share
+from ecology import corner_cells, corner_share
 from train.experiments.report.figures import heatmap_snapshot_files
 from train.experiments.report.stats import LEARNED, collapsed
 from train.storage.rundir import read_visits
@@ -148,16 +148,16 @@ def table(seeds: dict[str, list[dict[str, float]]], windows: dict[str, list] | N
                     for name, rows in seeds.items()]
 
 
-def corner_summary(corners: dict[str, tuple[float, int, int]], shape: tuple[int, int] | None) -> str:
+def corner_summary(corners: dict[str, tuple[float, int, int]], reached: np.ndarray | None) -> str:
     """The seeds' late corner shares (`late_corners`) as mean (range) with their windows, beside an even spread's
-    over the cells inside the wall.
+    over the cells the seeds ever ``reached`` ((H, W) booleans: inner walls, never entered, are left out).
     """
     late = [c for c in corners.values() if math.isfinite(c[0])]
-    if not late or shape is None:
+    if not late or reached is None:
         return "corner visits not recorded"
     shares = [share for share, _, _ in late]
     windows = sorted({f"{spaced(start)}–{spaced(last)}" for _, start, last in late})
-    even = 4 / ((shape[0] - 2) * (shape[1] - 2))
+    even = reached[corner_cells(reached.shape)].sum() / max(int(reached.sum()), 1)
     return (f"visits in the 4 corners over steps {', '.join(windows)}: {statistics.mean(shares):.1%} "
             f"({min(shares):.1%}–{max(shares):.1%}; an even spread {even:.1%})")
 
@@ -181,9 +181,10 @@ def print_seeds(seeds: dict[str, list[dict[str, float]]], windows: dict[str, lis
                 visits: dict[str, dict[int, np.ndarray]]) -> None:
     """Print one code's table of seeds and its summary line."""
     corners = {name: late_corners(visits.get(name, {})) for name in seeds}
-    shape = next((counts.shape for snapshots in visits.values() for counts in snapshots.values()), None)
+    last = [snapshots[max(snapshots)] for snapshots in visits.values() if snapshots]
+    reached = np.any([counts > 0 for counts in last], axis=0) if last else None
     print("\n".join(table(seeds, windows, {name: share for name, (share, _, _) in corners.items()})))
-    print(f"\n{summary(seeds, corner_summary(corners, shape))}")
+    print(f"\n{summary(seeds, corner_summary(corners, reached))}")
 
 
 def main(argv: list[str] | None = None) -> None:
