@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import argparse
 import ast
+import difflib
 from dataclasses import dataclass
+from typing import NoReturn
 
 import numpy as np
 from tqdm import tqdm
@@ -150,17 +152,50 @@ def parse_params(pairs: list[str]) -> dict:
     return params
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (what is wrong and how to mend it), without the usage dump."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _count(text: str) -> int:
+    """A whole number, also written ``2e4`` (an argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if not value.is_integer():
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}")
+    return int(value)
+
+
+def _setting(text: str) -> str:
+    """One of `SETTINGS` (an argparse type), the nearest named where ``text`` is none."""
+    if text in SETTINGS:
+        return text
+    near = difflib.get_close_matches(text, SETTINGS, n=1, cutoff=0.5)
+    near = near or [name for name in SETTINGS if name.startswith(text)][:1]
+    hint = f"did you mean {near[0]!r}? " if near else ""
+    raise argparse.ArgumentTypeError(f"unknown setting {text!r}; {hint}(choose among {', '.join(map(repr, SETTINGS))}; "
+                                     f"quote a name with a space)")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Print the random-policy table for the standard settings (or those named with ``--setting``)."""
-    parser = argparse.ArgumentParser(prog="python -m gridtasks.random_policy", description=__doc__.split("\n")[0])
-    parser.add_argument("--seeds", type=int, default=32, help="worlds per setting (default 32)")
-    parser.add_argument("--steps", type=int, default=20_000, help="steps per world (default 20 000)")
-    parser.add_argument("--setting", action="append", choices=list(SETTINGS), help="only these settings")
+    parser = _OneLineParser(prog="python -m gridtasks.random_policy", description=__doc__.split("\n")[0],
+                            allow_abbrev=False)
+    parser.add_argument("--seeds", type=_count, default=32, help="worlds per setting, at least 2 (default 32)")
+    parser.add_argument("--steps", type=_count, default=20_000, help="steps per world (default 20 000)")
+    parser.add_argument("--setting", action="append", type=_setting, metavar="NAME",
+                        help=f"only these settings, one a flag: {', '.join(map(repr, SETTINGS))}")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="a task parameter for every setting that has it, e.g. spawn_on_agent=False")
     args = parser.parse_args(argv)
-    if args.seeds < 2 or args.steps < 1:
-        parser.error("--seeds must be >= 2 and --steps >= 1")
+    if args.seeds < 2:
+        parser.error(f"--seeds must be at least 2 (the table's intervals are over worlds), got {args.seeds}")
+    if args.steps < 1:
+        parser.error(f"--steps must be at least 1, got {args.steps}")
     params = parse_params(args.param)
     names = args.setting or list(SETTINGS)
     known = {field for name in names for field in TASKS[SETTINGS[name][0]].Config.__dataclass_fields__}

@@ -74,3 +74,20 @@ def test_the_original_predator_respawn_catches_a_random_agent_more_often():
     original = random_policy.measure("scavenging", knobs, seeds=8, steps=5_000)
     off_agent = random_policy.measure("scavenging", {**knobs, "predator_respawn": "off-agent"}, seeds=8, steps=5_000)
     assert original.caught.sum() > off_agent.caught.sum()
+
+
+@pytest.mark.parametrize(("argv", "said"), [
+    (["--seeds", "1"], "--seeds must be at least 2"),
+    (["--seed", "3"], "unrecognized arguments: --seed 3"),  # no abbreviation taken for --seeds
+    (["--setting", "salad"], "unknown setting 'salad'; did you mean 'salad p=0'?"),
+    (["--steps", "x"], "expected a whole number, got 'x'")])
+def test_cli_refuses_a_mistake_in_one_line(argv, said, capsys):
+    with pytest.raises(SystemExit):
+        random_policy.main(argv)
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and said in err, err
+
+
+def test_cli_reads_counts_written_as_powers_of_ten(capsys):
+    random_policy.main(["--seeds", "2e0", "--steps", "5e1", "--setting", "salad p=0.1"])
+    assert "| salad p=0.1 |" in capsys.readouterr().out

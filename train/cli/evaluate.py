@@ -6,7 +6,7 @@ import argparse
 import math
 from pathlib import Path
 
-from train.cli.common import check_out_file, positive, probability, user_errors
+from train.cli.common import check_out_file, integer, positive, probability, user_errors
 from train.storage.rundir import RunDirError
 
 MAX_RANDOM_WORLDS = 100_000
@@ -21,7 +21,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "epsilon-greedy rollouts of the test horizon on the fixed validation layouts of the test "
                     "MDP. A uniform random policy is evaluated on the same layouts for comparison.")
     parser.add_argument("policy", type=Path, metavar="POLICY", help="policy file (.npz), run directory or checkpoint")
-    parser.add_argument("--agent", type=int, default=0, help="which of a run's seeds, by index (default: 0)")
+    parser.add_argument("--agent", type=integer, default=0, help="which of a run's seeds, by index (default: 0)")
     parser.add_argument("--rollouts", type=positive, default=100, help="validation layouts (default: 100)")
     parser.add_argument("--epsilon", type=probability, default=None,
                         help="exploration during evaluation (default: the run's, 0.1 in the paper)")
@@ -35,7 +35,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     grid.add_argument("--epsilons", type=probability, nargs="+", metavar="E",
                       help="e.g. 0 0.1 0.3 (default: --epsilon)")
     grid.add_argument("--horizons", type=positive, nargs="+", metavar="H", help="e.g. 100 400 (default: the run's)")
-    grid.add_argument("--fresh", type=int, default=None, metavar="N",
+    grid.add_argument("--fresh", type=integer, default=None, metavar="N",
                       help="also N fresh test-MDP layouts (seeds 2 000 000 000 + i), beside --rollouts validation ones")
     grid.add_argument("--no-split", action="store_true",
                       help="do not split by the first view (a task without one, e.g. hunting, never is)")

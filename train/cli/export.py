@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from train.cli.common import user_errors
+from train.cli.common import integer, user_errors
 from train.storage.rundir import RunDirError
 
 
@@ -18,7 +18,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "60 KB for a grid task) that 'ecorl video --policy' and 'ecorl evaluate' read.")
     parser.add_argument("run", type=Path, metavar="RUN_DIR", help="run directory (or its checkpoint.npz)")
     parser.add_argument("--out", type=Path, required=True, help="policy file to write (.npz)")
-    parser.add_argument("--agent", type=int, default=None,
+    parser.add_argument("--agent", type=integer, default=None,
                         help="seed index to export (default: the best at the checkpoint's evaluation)")
     parser.set_defaults(handler=handle)
     return parser

@@ -20,7 +20,9 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                     "result docs/results/paper/NAME: results/report/NAME) unless --out is given.")
     parser.add_argument("dir", type=Path, metavar="DIR",
                         help="results directory (e.g. results/headline) or run directory (e.g. runs/salad-...)")
-    parser.add_argument("--out", type=Path, default=None, help="write the report here instead")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="write the report here instead (a film a run lacks is still made in its run "
+                             "directory, beside its checkpoint, where later reports find it; --no-videos makes none)")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--videos", dest="videos", action="store_true", default=None,
                        help="render a rollout video of every finished run that has none")

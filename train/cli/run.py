@@ -30,8 +30,8 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
                              "across experiments")
     parser.add_argument("--list", action="store_true",
                         help="list the experiments (those named, or all) and their budgets, then exit")
-    parser.add_argument("--task", nargs="+", metavar="T", help="only these tasks of the experiment")
-    parser.add_argument("--condition", nargs="+", metavar="C",
+    parser.add_argument("--task", nargs="+", action="extend", metavar="T", help="only these tasks of the experiment")
+    parser.add_argument("--condition", nargs="+", action="extend", metavar="C",
                         help="only these conditions (e.g. to give each machine its own; see --dry-run for names)")
     parser.add_argument("--budget", choices=BUDGETS, default="quick",
                         help="smoke (seconds, for tests), quick (minutes on a laptop, default) or paper")
@@ -58,7 +58,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     parser.add_argument("--minutes", type=minutes, default=None,
                         help="time budget: measure this machine's speed first, then size the steps per seed so that "
                              "every run and the report end within this many minutes (at most the budget's steps)")
-    parser.add_argument("--restart", nargs="+", metavar="C", default=(),
+    parser.add_argument("--restart", nargs="+", action="extend", metavar="C", default=[],
                         help="train these conditions again from scratch, deleting their results and checkpoint "
                              "(e.g. one that finished but lost its checkpoint)")
     parser.add_argument("--dry-run", action="store_true", help="print the runs (and their state), run nothing")
@@ -96,6 +96,8 @@ def handle(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         return 0
     if args.all and args.experiment:
         parser.error("--all runs every experiment that trains; drop the names, or drop --all")
+    if args.address is not None and args.executor != "ray":
+        parser.error("--address names a Ray cluster and applies only with --executor ray; add it, or drop --address")
     names = [e.name for e in EXPERIMENTS.values() if not e.is_measurement] if args.all else args.experiment
     if not names:
         parser.error("name an EXPERIMENT (or pass --all, or --list)")

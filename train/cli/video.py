@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from train.cli.common import UserError, check_out_file, nonnegative, positive, probability, user_errors
+from train.cli.common import UserError, check_out_file, integer, nonnegative, positive, probability, user_errors
 from train.storage.rundir import FILM_NAME, RunDirError
 
 VIDEO_DIR = Path("results") / "videos"
@@ -37,7 +37,7 @@ def add_parser(subparsers) -> argparse.ArgumentParser:
     length.add_argument("--steps", type=positive, default=None,
                         help="film exactly this many steps instead (new episodes after each end)")
     parser.add_argument("--seed", type=nonnegative, default=0, help="first layout and exploration seed (default: 0)")
-    parser.add_argument("--agent", type=int, default=0, help="which of the run's seeds acts, by index (default: 0)")
+    parser.add_argument("--agent", type=integer, default=0, help="which of the run's seeds acts, by index (default: 0)")
     parser.add_argument("--epsilon", type=probability, default=0.05,
                         help="exploration of the policy (default: 0.05)")
     parser.add_argument("--train-env", action="store_true",

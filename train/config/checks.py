@@ -61,13 +61,22 @@ def check_kwargs(name: str, kwargs: Any, owned: Mapping[str, str]) -> None:
         raise ValueError(f"{name} may not set {taken[0]!r}: the config owns it ({owned[taken[0]]})")
 
 
+SPELLED_OTHERWISE = (("non-episodic", "reset-free"), ("nonepisodic", "reset-free"), ("non_episodic", "reset-free"),
+                     ("resetfree", "reset-free"), ("reset_free", "reset-free"))
+"""The paper's word for the conditions ecorl names ``*-reset-free``, and other spellings of it: read as ecorl's name
+before the nearest is sought, so 'dynamic-non-episodic' suggests dynamic-reset-free and not its opposite."""
+
+
 def did_you_mean(given: Any, valid: Iterable[str]) -> str:
     """``'; did you mean X?'`` for the valid name closest to ``given`` (the one it begins, where only one does),
-    or '' when none is close or ``given`` is not a string.
+    or '' when none is close or ``given`` is not a string. Case and the `SPELLED_OTHERWISE` words are ignored.
     """
     if not isinstance(given, str):
         return ""
     valid = list(valid)
+    given = given.lower()
+    for spelling, name in SPELLED_OTHERWISE:
+        given = given.replace(spelling, name)
     begun = [name for name in valid if given and name.startswith(given)]
     close = begun if len(begun) == 1 else difflib.get_close_matches(given, valid, n=1, cutoff=0.7)
     return f"; did you mean {close[0]}?" if close else ""

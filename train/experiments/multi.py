@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from train.config import TrainConfig
+from train.config.checks import unknown_choice
 from train.experiments.experiment import Experiment
 from train.experiments.jobs import Job, job_is_done, job_is_done_safely
 from train.experiments.sweep import plan
@@ -30,6 +31,7 @@ def plan_many(experiments: Sequence[Experiment], budget: str, out: str | Path, t
     """The jobs of every experiment, each restricted to the ``tasks`` and ``conditions`` it has (an experiment with
     none of them is left out); ValueError when nothing is left.
     """
+    _check_named(experiments, tasks, conditions)
     jobs: list[Job] = []
     for exp in experiments:
         for task in (t for t in exp.tasks if not tasks or t in tasks):
@@ -40,6 +42,20 @@ def plan_many(experiments: Sequence[Experiment], budget: str, out: str | Path, t
         raise ValueError(f"no experiment of {', '.join(e.name for e in experiments)} has the tasks or conditions "
                          f"asked for; see 'ecorl run --list' and 'ecorl run NAME --dry-run'")
     return jobs
+
+
+def _check_named(experiments: Sequence[Experiment], tasks: Sequence[str] | None,
+                 conditions: Sequence[str] | None) -> None:
+    """ValueError (naming the nearest valid name) for a task or condition that none of the ``experiments`` has."""
+    known_tasks = list(dict.fromkeys(t for exp in experiments for t in exp.tasks))
+    unknown = [t for t in tasks or () if t not in known_tasks]
+    if unknown:
+        raise unknown_choice("task", unknown, known_tasks)
+    known = list(dict.fromkeys(c.name for exp in experiments for t in exp.tasks if not tasks or t in tasks
+                               for c in exp.conditions[t]))
+    unknown = [c for c in conditions or () if c not in known]
+    if unknown:
+        raise unknown_choice("condition", unknown, known)
 
 
 def _identity(job: Job) -> str:

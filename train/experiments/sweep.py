@@ -70,7 +70,10 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
                 cfg = job_config(task, cond, budget)
                 cfg = cfg.replace(device=device) if device else cfg
                 cfg = cfg.replace(first_seed=first_seed) if first_seed else cfg
-                cfg.check_trains()
+                if cfg.dqn.warmup_steps >= cfg.run.steps:
+                    raise ValueError(f"{task}/{cond.name} would train nothing: its {cfg.dqn.warmup_steps}-step "
+                                     f"warm-up takes all {cfg.run.steps} steps; give --steps above "
+                                     f"{cfg.dqn.warmup_steps}")
                 jobs.append(Job(experiment.name, task, cond.name, run_dir, cfg.to_dict(),
                                 cfg.run.seeds * cfg.total_steps * (10 if task == "foodcollector" else 1)))
     unknown = sorted(set(restart) - {job.condition for job in jobs})

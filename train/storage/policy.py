@@ -155,6 +155,9 @@ def run_config(run_dir: Path) -> TrainConfig:
 def resolve_run_dir(path: str | Path) -> Path:
     """The run directory of a run directory or of a checkpoint file inside one."""
     path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path} does not exist; give a run directory (with config.json and "
+                                f"{CHECKPOINT_NAME}) or a .npz policy file")
     run_dir = path.parent if path.is_file() else path
     if not (run_dir / CHECKPOINT_NAME).exists() and (run_dir / LEGACY_NAME).exists():
         raise RunDirError(legacy_message(run_dir / LEGACY_NAME))

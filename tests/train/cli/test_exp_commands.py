@@ -38,6 +38,15 @@ def test_parsers_attach_to_any_subparsers():
         parser.parse_args(["video", "salad", "--random", "--steps", "5", "--episodes", "2"])
 
 
+def test_every_whole_number_flag_reads_powers_of_ten_as_the_docs_promise():
+    plain = [f"ecorl {name} {action.option_strings[0]}"
+             for name, sub in cli.build_parser()._subparsers._group_actions[0].choices.items()
+             for action in sub._actions if action.type is int]
+    assert not plain, f"argparse's int refuses 1e6: {plain}"
+    args = cli.build_parser().parse_args(["evaluate", "policy.npz", "--fresh", "1e3", "--agent", "0e0"])
+    assert (args.fresh, args.agent) == (1000, 0)
+
+
 def test_ecorl_cli_has_the_subcommands_once_wired():
     parser = cli.build_parser()
     names = set(parser._subparsers._group_actions[0].choices)
@@ -288,6 +297,25 @@ def test_run_condition_subset(capsys, tmp_path):
     with pytest.raises(SystemExit):
         cli.main(["run", "headline", "--condition", "dynamic", "--dry-run", "--out", str(tmp_path)])
     assert "unknown headline/salad condition 'dynamic'; choose one of static-episodic" in capsys.readouterr().err
+    assert cli.main(["run", "headline", "--dry-run", "--out", str(tmp_path), "--condition", "dynamic-reset-free",
+                     "--condition", "static-episodic"]) == 0  # a repeated flag adds its names, as one does
+    assert len(capsys.readouterr().out.splitlines()) == 2
+
+
+@pytest.mark.parametrize(("argv", "said"), [
+    (["headline", "--condition", "dynamic-non-episodic"], "did you mean dynamic-reset-free?"),  # the paper's word
+    (["headline", "--condition", "Static-Reset-Free"], "did you mean static-reset-free?"),
+    (["headline", "dynamism", "--condition", "dynamic-resetfree"],
+     "unknown condition 'dynamic-resetfree'; did you mean dynamic-reset-free?"),
+    (["headline", "dynamism", "--task", "salid"], "unknown task 'salid'; did you mean salad?"),
+    (["headline", "--address", "auto"], "--address names a Ray cluster and applies only with --executor ray"),
+    (["headline", "--steps", "100"], "its 200-step warm-up takes all 100 steps; give --steps above 200")])
+def test_run_refuses_a_mistake_in_one_line_that_names_the_fix(argv, said, capsys, tmp_path):
+    with pytest.raises(SystemExit) as stop:
+        cli.main(["run", *argv, "--dry-run", "--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip()
+    assert stop.value.code == 2 and len(err.splitlines()) == 1 and said in err, err
+    assert "--warmup-steps" not in err  # a flag ecorl run does not have
 
 
 def test_an_unfinished_sweep_names_each_run_and_why():

@@ -189,6 +189,8 @@ def test_export_and_video_commands(run_dir, tmp_path, capsys):
     assert "trained on 'salad'" in capsys.readouterr().err
     assert cli.main(["export", str(tmp_path), "--out", str(out)]) == 2
     assert "not a run directory" in capsys.readouterr().err
+    assert cli.main(["export", str(tmp_path / "nowhere"), "--out", str(out)]) == 2
+    assert f"{tmp_path / 'nowhere'} does not exist; give a run directory" in capsys.readouterr().err
     assert cli.main(["evaluate", str(out), "--rollouts", "5"]) == 0
     printed = capsys.readouterr().out
     assert "salad, 5 validation layouts" in printed and "policy (epsilon 0.1; other exploration draws" in printed
