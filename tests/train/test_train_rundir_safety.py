@@ -168,6 +168,14 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(flags, message, tmp_pat
     assert not out.exists()
 
 
+def test_a_folder_of_other_files_is_refused_without_offering_to_resume_a_run_it_lacks(tmp_path, capsys):
+    (tmp_path / "notes.txt").write_text("mine")
+    assert main(["train", "salad", "--out", str(tmp_path)]) == 2
+    err = _one_line_error(capsys)
+    assert "is not empty and holds no run (no config.json); choose another --out" in err and "--resume" not in err
+    assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
 def test_out_pointing_at_a_file_is_refused(tmp_path, capsys):
     target = tmp_path / "notes.txt"
     target.write_text("mine")

@@ -168,6 +168,9 @@ class RunDir:
         if diffs:
             return (f"run directory {self.path} holds a run made with other settings ({'; '.join(diffs)}); choose "
                     f"another --out for this one (or delete the directory)")
+        if not (self.path / "config.json").exists():
+            return (f"{self.path} is not empty and holds no run (no config.json); choose another --out, or an empty "
+                    f"or new directory")
         return (f"run directory {self.path} is not empty. Pass --resume to continue the run it holds, or choose "
                 f"another --out (or delete the directory) to start afresh.")
 

@@ -183,8 +183,9 @@ def real_dir(path: str | Path) -> Path:
     except FileExistsError:  # a file, or a link to nothing: refused below
         pass
     mode = os.lstat(path).st_mode
-    if not stat.S_ISDIR(mode):
+    if stat.S_ISLNK(mode):
         raise UnsafeFileError(f"{path} is {_kind(mode)}, not a directory; ecorl writes only into real directories "
-                              f"(a link could send its files elsewhere): remove it, or point --out at the real "
-                              f"directory")
+                              f"(a link could send its files elsewhere): point --out at the real directory")
+    if not stat.S_ISDIR(mode):
+        raise UnsafeFileError(f"{path} is {_kind(mode)}, not a directory; point --out at a directory")
     return path
