@@ -70,10 +70,12 @@ def plan(experiment: Experiment, budget_name: str, out: str | Path, tasks: Seque
                 cfg = job_config(task, cond, budget)
                 cfg = cfg.replace(device=device) if device else cfg
                 cfg = cfg.replace(first_seed=first_seed) if first_seed else cfg
-                if cfg.dqn.warmup_steps >= cfg.run.steps:
+                try:
+                    cfg.check_trains()
+                except ValueError:  # its message names ecorl train's --warmup-steps, which ecorl run has not
                     raise ValueError(f"{task}/{cond.name} would train nothing: its {cfg.dqn.warmup_steps}-step "
                                      f"warm-up takes all {cfg.run.steps} steps; give --steps above "
-                                     f"{cfg.dqn.warmup_steps}")
+                                     f"{cfg.dqn.warmup_steps}") from None
                 jobs.append(Job(experiment.name, task, cond.name, run_dir, cfg.to_dict(),
                                 cfg.run.seeds * cfg.total_steps * (10 if task == "foodcollector" else 1)))
     unknown = sorted(set(restart) - {job.condition for job in jobs})
